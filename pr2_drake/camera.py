@@ -1,0 +1,145 @@
+"""The head RGB-D camera: a Drake RgbdSensor on RenderEngineVtk, sampled at its own rate."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.geometry import (
+    ClippingRange,
+    ColorRenderCamera,
+    DepthRange,
+    DepthRenderCamera,
+    MakeRenderEngineVtk,
+    RenderCameraCore,
+    RenderEngineVtkParams,
+    SceneGraph,
+)
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
+from pydrake.systems.sensors import CameraInfo, ImageDepth32F, ImageRgba8U, RgbdSensor, RgbdSensorDiscrete
+
+RENDERER_NAME = "pr2_vtk"
+QUALITIES = ("low", "medium", "high")
+
+
+@dataclass
+class CameraSettings:
+    """Head camera settings.
+
+    Attributes:
+        enabled: add the camera (tasks that need no camera leave it off: it costs time).
+        width, height: image size in pixels.
+        fps: frames per second in simulated time; the sensor renders only at this rate.
+        fov_y_deg: vertical field of view [deg].
+        quality: "low" (no shadows), "medium" (shadow maps), "high" (large shadow maps and
+            ambient occlusion). Lower quality renders faster.
+        z_near, z_far: depth range [m]; depth outside it reads inf (too far) or 0 (too near).
+    """
+
+    enabled: bool = False
+    width: int = 640
+    height: int = 480
+    fps: float = 10.0
+    fov_y_deg: float = 60.0
+    quality: str = "medium"
+    z_near: float = 0.05
+    z_far: float = 30.0
+
+    def validate(self) -> None:
+        if self.quality not in QUALITIES:
+            raise ValueError(f"camera.quality must be one of {QUALITIES}, got {self.quality!r}")
+        if self.width < 8 or self.height < 8:
+            raise ValueError(f"camera size must be at least 8x8, got {self.width}x{self.height}")
+        if not self.fps > 0:
+            raise ValueError(f"camera.fps must be positive, got {self.fps}")
+        if not 0 < self.fov_y_deg < 170:
+            raise ValueError(f"camera.fov_y_deg must be in (0, 170), got {self.fov_y_deg}")
+        if not 0 < self.z_near < self.z_far:
+            raise ValueError("camera depth range needs 0 < z_near < z_far")
+
+
+@dataclass
+class RgbdFrame:
+    """One camera frame: colour HxWx3 uint8 and distance to the image plane HxW float32 [m]."""
+
+    color: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 3), np.uint8))
+    depth: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), np.float32))
+
+
+def renderer_params(quality: str) -> RenderEngineVtkParams:
+    """VTK render settings for a quality level (see :class:`CameraSettings`)."""
+    params = RenderEngineVtkParams()
+    params.default_clear_color = [0.78, 0.86, 0.95]
+    if quality == "medium":
+        params.cast_shadows = True
+        params.shadow_map_size = 512
+    elif quality == "high":
+        params.cast_shadows = True
+        params.shadow_map_size = 2048
+        try:
+            from pydrake.geometry import SsaoParameter
+
+            params.ssao = SsaoParameter()
+        except ImportError:  # older Drake: no ambient occlusion
+            pass
+    return params
+
+
+class RgbdToNumpy(LeafSystem):
+    """Converts Drake images to an :class:`RgbdFrame` of numpy arrays (evaluated on demand)."""
+
+    def __init__(self, width: int, height: int):
+        super().__init__()
+        self._color = self.DeclareAbstractInputPort(
+            "color_image", AbstractValue.Make(ImageRgba8U(width, height))
+        )
+        self._depth = self.DeclareAbstractInputPort(
+            "depth_image_32f", AbstractValue.Make(ImageDepth32F(width, height))
+        )
+        self.DeclareAbstractOutputPort(
+            "rgbd", lambda: AbstractValue.Make(RgbdFrame()), self._calc
+        )
+
+    def _calc(self, context, output) -> None:
+        color = self._color.Eval(context).data[:, :, :3].copy()
+        depth = self._depth.Eval(context).data[:, :, 0].copy()
+        output.set_value(RgbdFrame(color, depth))
+
+
+def add_head_camera(
+    builder: DiagramBuilder,
+    scene_graph: SceneGraph,
+    parent_frame_id,
+    X_PC: RigidTransform,
+    settings: CameraSettings,
+) -> RgbdToNumpy:
+    """Adds the renderer, a discrete RgbdSensor on the head frame and the numpy converter.
+
+    Args:
+        parent_frame_id: SceneGraph frame id of the body carrying the camera.
+        X_PC: camera pose in that body, in Drake's camera convention (+z optical axis).
+    Returns:
+        the converter, whose output port ``rgbd`` carries :class:`RgbdFrame`.
+    """
+    settings.validate()
+    if not scene_graph.HasRenderer(RENDERER_NAME):
+        scene_graph.AddRenderer(RENDERER_NAME, MakeRenderEngineVtk(renderer_params(settings.quality)))
+    core = RenderCameraCore(
+        RENDERER_NAME,
+        CameraInfo(settings.width, settings.height, np.radians(settings.fov_y_deg)),
+        ClippingRange(0.5 * settings.z_near, 2.0 * settings.z_far),
+        RigidTransform(),
+    )
+    color = ColorRenderCamera(core, False)
+    depth = DepthRenderCamera(core, DepthRange(settings.z_near, settings.z_far))
+    sensor = RgbdSensor(parent_frame_id, X_PC, color, depth)
+    discrete = builder.AddNamedSystem(
+        "head_camera", RgbdSensorDiscrete(sensor, 1.0 / settings.fps, render_label_image=False)
+    )
+    builder.Connect(scene_graph.get_query_output_port(), discrete.query_object_input_port())
+    converter = builder.AddNamedSystem("rgbd_to_numpy", RgbdToNumpy(settings.width, settings.height))
+    builder.Connect(discrete.color_image_output_port(), converter.GetInputPort("color_image"))
+    builder.Connect(discrete.depth_image_32F_output_port(), converter.GetInputPort("depth_image_32f"))
+    return converter

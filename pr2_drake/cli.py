@@ -1,0 +1,268 @@
+"""The ``pr2-drake`` command line.
+
+    pr2-drake run [--task N] [--seed S] [--agent module:Class] [--seconds T] [--meshcat]
+                  [--record replay.html] [--report report.json]
+    pr2-drake eval --task N --seeds A:B [--agent module:Class] [--jobs J] [--out results.json]
+    pr2-drake bench {sim,camera,startup,walking} [...]
+    pr2-drake tasks
+
+Heavy imports (pydrake) happen inside the commands so that ``--help`` answers at once.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from typing import Any
+
+
+def _camera_settings(args):
+    if args.camera is None and args.camera_fps is None and args.render_quality is None:
+        return None
+    from pr2_drake.camera import CameraSettings
+
+    cam = CameraSettings(enabled=args.camera != "off")
+    if args.camera not in (None, "on", "off"):
+        try:
+            w, h = (int(v) for v in args.camera.lower().split("x"))
+        except ValueError:
+            raise SystemExit(f"--camera: expected WIDTHxHEIGHT, 'on' or 'off', got {args.camera!r}")
+        cam.width, cam.height = w, h
+    if args.camera_fps is not None:
+        cam.fps = args.camera_fps
+    if args.render_quality is not None:
+        cam.quality = args.render_quality
+    return cam
+
+
+def _add_episode_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--task", help="task id 1..6 or name (default: flat ground, no referee)")
+    p.add_argument("--agent", help="agent as module:Class (default: the task's built-in agent)")
+    p.add_argument("--seconds", type=float, help="simulated seconds (default: the task's limit)")
+    p.add_argument("--time-step", type=float, default=0.001, help="physics step [s]")
+    p.add_argument("--camera", help="head camera: on, off or WIDTHxHEIGHT (default: the task's)")
+    p.add_argument("--camera-fps", type=float, help="camera frames per simulated second")
+    p.add_argument("--render-quality", choices=("low", "medium", "high"))
+
+
+def _print_report(report: dict[str, Any], out=sys.stdout) -> None:
+    task = report["task"]
+    title = f"task {task} ({report['task_name']})" if task is not None else "flat ground"
+    print(f"\n{title}, seed {report['seed']}, agent {report['agent']}", file=out)
+    if task is not None:
+        from pr2_drake.tasks import get_task
+
+        spec = get_task(task).spec
+        earned = {e["item"]: e for e in report["items"]}
+        print(f"  {'rubric item':<34}{'points':>8}{'earned':>8}{'at [s]':>9}", file=out)
+        for r in spec.rubric:
+            e = earned.get(r.item)
+            got = f"{e['points']:g}" if e else "-"
+            at = f"{e['time']:.2f}" if e else ""
+            print(f"  {r.item:<34}{r.points:>8g}{got:>8}{at:>9}", file=out)
+        extra = [e for e in report["items"] if e["item"] not in {r.item for r in spec.rubric}]
+        for e in extra:
+            print(f"  {e['item']:<34}{'':>8}{e['points']:>8g}{e['time']:>9.2f}", file=out)
+    print(f"  score {report['score']:g} / {report['max_score']:g}   success {report['success']}"
+          f"   ended: {report['termination']} at t = {report['sim_time']:.2f} s", file=out)
+    rtf = report.get("real_time_factor")
+    print(f"  wall time {report['wall_time']:.1f} s, real-time factor "
+          f"{rtf if rtf is not None else 'n/a'}", file=out)
+    if report.get("message"):
+        print(f"  note: {report['message']}", file=out)
+
+
+def cmd_run(args) -> int:
+    if args.diagram:
+        from pr2_drake.diagrams import run_diagram_file
+
+        return run_diagram_file(args.diagram, args)
+    from pydrake.geometry import Meshcat
+
+    from pr2_drake.episode import EpisodeOptions, run_episode
+
+    meshcat = None
+    if args.meshcat:
+        meshcat = Meshcat()
+        print(f"Meshcat: {meshcat.web_url()}", flush=True)
+    opts = EpisodeOptions(
+        task=args.task, seed=args.seed, agent=args.agent, seconds=args.seconds,
+        time_step=args.time_step, camera=_camera_settings(args), meshcat=meshcat,
+        record=args.record, progress=None if args.quiet else sys.stderr,
+    )
+    report = run_episode(opts)
+    _print_report(report)
+    if args.record:
+        print(f"  replay written to {args.record}")
+    if args.report:
+        with open(args.report, "w") as f:
+            json.dump(report, f, indent=2)
+        print(f"  report written to {args.report}")
+    if args.meshcat and not args.no_wait:
+        try:
+            input("Simulation done; press Enter to close Meshcat.")
+        except EOFError:
+            pass
+    return 0
+
+
+def _parse_seeds(text: str) -> list[int]:
+    try:
+        if ":" in text:
+            a, b = text.split(":")
+            seeds = list(range(int(a), int(b)))
+        else:
+            seeds = [int(s) for s in text.split(",")]
+    except ValueError:
+        raise SystemExit(f"--seeds: expected A:B (B exclusive) or a comma list, got {text!r}")
+    if not seeds:
+        raise SystemExit(f"--seeds {text!r} selects no seed")
+    return seeds
+
+
+def _eval_one(args_tuple):
+    task, seed, agent, seconds, time_step = args_tuple
+    from pr2_drake.episode import EpisodeOptions, run_episode
+
+    return run_episode(EpisodeOptions(task=task, seed=seed, agent=agent, seconds=seconds,
+                                      time_step=time_step))
+
+
+def summarize(reports: list[dict[str, Any]]) -> dict[str, Any]:
+    """Success rate, mean score, per-item rates and completion times over episodes."""
+    import numpy as np
+
+    n = len(reports)
+    items: dict[str, int] = {}
+    terminations: dict[str, int] = {}
+    for r in reports:
+        for e in r["items"]:
+            items[e["item"]] = items.get(e["item"], 0) + 1
+        terminations[r["termination"]] = terminations.get(r["termination"], 0) + 1
+    done_times = [r["sim_time"] for r in reports if r["success"]]
+    return {
+        "episodes": n,
+        "success_rate": sum(r["success"] for r in reports) / n,
+        "full_marks_rate": sum(r["score"] >= r["max_score"] for r in reports) / n,
+        "mean_score": float(np.mean([r["score"] for r in reports])),
+        "max_score": reports[0]["max_score"],
+        "item_rates": {k: v / n for k, v in sorted(items.items())},
+        "terminations": terminations,
+        "completion_time_mean": float(np.mean(done_times)) if done_times else None,
+        "completion_time_median": float(np.median(done_times)) if done_times else None,
+        "mean_real_time_factor": float(np.mean([r["real_time_factor"] or 0 for r in reports])),
+    }
+
+
+def cmd_eval(args) -> int:
+    from pr2_drake.tasks import task_id
+
+    task = task_id(args.task)
+    seeds = _parse_seeds(args.seeds)
+    jobs = max(1, args.jobs)
+    work = [(task, s, args.agent, args.seconds, args.time_step) for s in seeds]
+    reports: list[dict[str, Any]] = []
+    start = time.perf_counter()
+    print(f"evaluating task {task} over {len(seeds)} seeds with {jobs} job(s)", file=sys.stderr)
+    if jobs == 1:
+        results = map(_eval_one, work)
+    else:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        pool = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"))
+        results = pool.map(_eval_one, work)
+    for r in results:
+        reports.append(r)
+        print(f"  seed {r['seed']:>4}: score {r['score']:>5g}/{r['max_score']:g} "
+              f"{r['termination']:<12} t = {r['sim_time']:6.2f} s  "
+              f"({len(reports)}/{len(seeds)}, {time.perf_counter() - start:.0f} s)",
+              file=sys.stderr, flush=True)
+    summary = summarize(reports)
+    print(f"\ntask {task}: {summary['episodes']} episodes")
+    print(f"  success rate      {100 * summary['success_rate']:.1f} %")
+    print(f"  full marks        {100 * summary['full_marks_rate']:.1f} %")
+    print(f"  mean score        {summary['mean_score']:.2f} / {summary['max_score']:g}")
+    for item, rate in summary["item_rates"].items():
+        print(f"  item {item:<28} {100 * rate:5.1f} %")
+    for reason, count in summary["terminations"].items():
+        print(f"  ended {reason:<27} {count}")
+    if summary["completion_time_mean"] is not None:
+        print(f"  completion time   mean {summary['completion_time_mean']:.1f} s, "
+              f"median {summary['completion_time_median']:.1f} s")
+    if args.out:
+        with open(args.out, "w") as f:
+            json.dump({"summary": summary, "episodes": reports}, f, indent=2)
+        print(f"  results written to {args.out}")
+    return 0
+
+
+def cmd_bench(args) -> int:
+    from pr2_drake.benchmarks import run_benchmark
+
+    return run_benchmark(args.what, args.rest)
+
+
+def cmd_tasks(args) -> int:
+    from pr2_drake.tasks import get_task, list_tasks
+
+    for i, name in list_tasks():
+        try:
+            spec = get_task(i).spec
+            print(f"  {i}  {name:<16} {spec.title:<44} {spec.max_score:>4g} points, "
+                  f"limit {spec.time_limit:g} s")
+        except Exception as e:  # a task module not available
+            print(f"  {i}  {name:<16} (unavailable: {e})")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="pr2-drake", description="Drake-native PR2 humanoid testbed")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("run", help="run one scored episode (or a diagram YAML)")
+    p.add_argument("diagram", nargs="?", help="optional diagram YAML (see diagrams/)")
+    _add_episode_args(p)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--meshcat", action="store_true", help="start Meshcat and print its URL")
+    p.add_argument("--no-wait", action="store_true", help="with --meshcat: exit when done")
+    p.add_argument("--record", metavar="HTML", help="write a self-contained replay")
+    p.add_argument("--report", metavar="JSON", help="write the report as JSON")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("eval", help="run many seeded episodes and summarise")
+    _add_episode_args(p)
+    p.add_argument("--seeds", default="0:10", help="A:B (B exclusive) or a comma list")
+    p.add_argument("--jobs", type=int, default=1, help="parallel processes")
+    p.add_argument("--out", metavar="JSON", help="write all reports and the summary")
+    p.set_defaults(func=cmd_eval)
+
+    p = sub.add_parser("bench", help="benchmarks: sim, camera, startup, walking")
+    p.add_argument("what", choices=("sim", "camera", "startup", "walking", "all"))
+    p.add_argument("rest", nargs=argparse.REMAINDER, help="options of that benchmark")
+    p.set_defaults(func=cmd_bench)
+
+    p = sub.add_parser("tasks", help="list the tasks")
+    p.set_defaults(func=cmd_tasks)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if args.command == "eval" and args.task is None:
+        raise SystemExit("pr2-drake eval: --task is required")
+    try:
+        return args.func(args)
+    except (ValueError, FileNotFoundError) as e:
+        print(f"pr2-drake: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,207 @@
+"""Symbolic pick / release as physical attachments.
+
+A pick latches only when the task's condition holds (the hand sphere inside the valve's enlarged
+volume, or within 0.20 m of an object). The attachment is a stiff spring-damper between the hand
+sphere centre H and a point A on the object, applied through the plant's externally applied
+spatial forces, so the object's weight and the valve's resistance act on the robot:
+
+- ``ball`` attachments hold p_WH on p_WA and leave rotation free (the valve of task 2);
+- ``weld`` attachments also hold the object's orientation relative to the hand (task 6).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.multibody.math import SpatialForce
+from pydrake.multibody.plant import ExternallyAppliedSpatialForce, MultibodyPlant
+from pydrake.multibody.tree import BodyIndex, ModelInstanceIndex
+from pydrake.systems.framework import LeafSystem
+
+from pr2_drake.ports import PICK_VALUES
+
+HAND_BODIES = {"left_hand": "l_arm_sphere", "right_hand": "r_arm_sphere"}
+
+
+@dataclass
+class Graspable:
+    """Something the robot may pick.
+
+    Attributes:
+        name: the name reported in ``pick_state`` (e.g. "cup", "valve").
+        body: the body index in the plant.
+        mode: "weld" (position and orientation held) or "ball" (position only).
+        can_pick: predicate (p_WH, X_WO) -> bool deciding whether a pick latches, given the
+            hand sphere centre and the object's pose in world.
+    """
+
+    name: str
+    body: BodyIndex
+    mode: str
+    can_pick: Callable[[np.ndarray, RigidTransform], bool]
+
+
+@dataclass
+class PickState:
+    """What the hands hold. ``hand`` is "left_hand"/"right_hand" or "" when nothing is held."""
+
+    attached: bool = False
+    hand: str = ""
+    object: str = ""
+
+
+@dataclass
+class GraspGains:
+    """Attachment spring-damper: N/m, N s/m, Nm/rad, Nm s/rad."""
+
+    stiffness: float = 3000.0
+    damping: float = 60.0
+    rot_stiffness: float = 5.0
+    rot_damping: float = 0.1
+
+
+@dataclass
+class _Attachment:
+    hand: str
+    graspable: int
+    p_OA: np.ndarray  # attachment point in the object frame
+    R_HO: np.ndarray  # object orientation relative to the hand at pick time
+    pick_time: float = 0.0
+    extra: dict = field(default_factory=dict)
+
+
+class GraspSystem(LeafSystem):
+    """Latches ``pick`` / ``release`` commands into attachments and applies their forces.
+
+    Input ports:
+        pick: str, "" (none), "left_hand" or "right_hand".
+        release: bool, True detaches whatever is held.
+        plant_state: the full plant state [q; v].
+    Output ports:
+        pick_state: :class:`PickState`.
+        spatial_forces: list of ExternallyAppliedSpatialForce for the plant.
+
+    The command ports are sampled every ``period`` seconds (default 0.01 s).
+    """
+
+    def __init__(
+        self,
+        plant: MultibodyPlant,
+        robot: ModelInstanceIndex,
+        graspables: list[Graspable],
+        period: float = 0.01,
+        gains: GraspGains | None = None,
+    ):
+        super().__init__()
+        self._plant = plant
+        self._ctx = plant.CreateDefaultContext()
+        self._graspables = list(graspables)
+        self._gains = gains or GraspGains()
+        self._hands = {k: plant.GetBodyByName(v, robot) for k, v in HAND_BODIES.items()}
+        self._pick = self.DeclareAbstractInputPort("pick", AbstractValue.Make(""))
+        self._release = self.DeclareAbstractInputPort("release", AbstractValue.Make(False))
+        self._state = self.DeclareVectorInputPort(
+            "plant_state", plant.num_positions() + plant.num_velocities()
+        )
+        self._attachment = self.DeclareAbstractState(AbstractValue.Make(_NoAttachment()))
+        self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update)
+        self.DeclareAbstractOutputPort(
+            "pick_state", lambda: AbstractValue.Make(PickState()), self._calc_pick_state
+        )
+        self.DeclareAbstractOutputPort(
+            "spatial_forces",
+            lambda: AbstractValue.Make([ExternallyAppliedSpatialForce()]),
+            self._calc_forces,
+        )
+
+    # -- helpers ------------------------------------------------------------------------------
+    def _set_state(self, context) -> None:
+        x = self._state.Eval(context)
+        self._plant.SetPositionsAndVelocities(self._ctx, x)
+
+    def _pose(self, body) -> RigidTransform:
+        return self._plant.EvalBodyPoseInWorld(self._ctx, body)
+
+    # -- events -------------------------------------------------------------------------------
+    def _update(self, context, state) -> None:
+        current = context.get_abstract_state(0).get_value()
+        release = self._release.HasValue(context) and bool(self._release.Eval(context))
+        pick = self._pick.Eval(context) if self._pick.HasValue(context) else ""
+        if pick is None:
+            pick = ""
+        if pick not in PICK_VALUES:
+            raise ValueError(f"pick: expected one of {PICK_VALUES}, got {pick!r}")
+        if isinstance(current, _Attachment):
+            if release:
+                state.get_mutable_abstract_state(0).set_value(_NoAttachment())
+            return
+        if not pick or release:
+            return
+        self._set_state(context)
+        X_WH = self._pose(self._hands[pick])
+        p_WH = X_WH.translation()
+        for i, g in enumerate(self._graspables):
+            X_WO = self._pose(self._plant.get_body(g.body))
+            if g.can_pick(p_WH, X_WO):
+                # A is the material point of the object under the hand centre at pick time.
+                p_OA = X_WO.inverse().multiply(p_WH)
+                R_HO = (X_WH.rotation().inverse() @ X_WO.rotation()).matrix()
+                state.get_mutable_abstract_state(0).set_value(
+                    _Attachment(pick, i, p_OA, R_HO, context.get_time())
+                )
+                return
+
+    # -- outputs ------------------------------------------------------------------------------
+    def _calc_pick_state(self, context, output) -> None:
+        a = context.get_abstract_state(0).get_value()
+        if isinstance(a, _Attachment):
+            output.set_value(PickState(True, a.hand, self._graspables[a.graspable].name))
+        else:
+            output.set_value(PickState())
+
+    def _calc_forces(self, context, output) -> None:
+        a = context.get_abstract_state(0).get_value()
+        if not isinstance(a, _Attachment):
+            output.set_value([])
+            return
+        self._set_state(context)
+        g = self._graspables[a.graspable]
+        hand = self._hands[a.hand]
+        obj = self._plant.get_body(g.body)
+        X_WH = self._pose(hand)
+        X_WO = self._pose(obj)
+        V_WH = self._plant.EvalBodySpatialVelocityInWorld(self._ctx, hand)
+        V_WO = self._plant.EvalBodySpatialVelocityInWorld(self._ctx, obj)
+        p_WA = X_WO.multiply(a.p_OA)
+        p_OA_W = p_WA - X_WO.translation()
+        v_WA = V_WO.translational() + np.cross(V_WO.rotational(), p_OA_W)
+        gains = self._gains
+        # Force on the object at A, pulling A towards the hand centre H.
+        f_A = gains.stiffness * (X_WH.translation() - p_WA) + gains.damping * (
+            V_WH.translational() - v_WA
+        )
+        tau = np.zeros(3)
+        if g.mode == "weld":
+            R_WO_desired = X_WH.rotation().matrix() @ a.R_HO
+            R_err = RotationMatrix(R_WO_desired @ X_WO.rotation().matrix().T)
+            aa = R_err.ToAngleAxis()
+            tau = gains.rot_stiffness * aa.angle() * aa.axis() + gains.rot_damping * (
+                V_WH.rotational() - V_WO.rotational()
+            )
+        on_object = ExternallyAppliedSpatialForce()
+        on_object.body_index = g.body
+        on_object.p_BoBq_B = a.p_OA
+        on_object.F_Bq_W = SpatialForce(tau, f_A)
+        on_hand = ExternallyAppliedSpatialForce()
+        on_hand.body_index = hand.index()
+        on_hand.p_BoBq_B = np.zeros(3)
+        on_hand.F_Bq_W = SpatialForce(-tau, -f_A)
+        output.set_value([on_object, on_hand])
+
+
+class _NoAttachment:
+    """Marker for the empty attachment state."""

@@ -1,0 +1,159 @@
+"""The original platform's observation and action dictionaries, to and from the testbed ports.
+
+Observation (``obs``)::
+
+    obs["agent"]["joint_state"]["arms_positions" | "arms_velocities" | "arms_applied_effort"
+                                | "legs_positions" | "legs_velocities" | "legs_applied_effort"]
+    obs["agent"]["body_state"]["world_pos" (3) | "world_orient" (w, x, y, z)
+                               | "linear_velocities" (3) | "angular_velocities" (3)]
+    obs["cam"]["rgb"] (H x W x 3 uint8), obs["cam"]["distance_to_image_plane"] (H x W float32, m)
+    obs["pick"]                  bool: something is attached to a hand
+    obs["pick_state"]            {"hand": ..., "object": ...}
+    obs["time"]                  simulated time [s]
+    obs["start_pos"], obs["start_orient"]    the episode's start pose (w, x, y, z)
+    obs["language_instruction"]  the task sentence (task 6), "" otherwise
+    obs["goal"], ...             the task's priors and feedback, under their own keys
+
+Action::
+
+    {"arms": {"ctrl_mode": "position" | "velocity" | "effort", "joint_values": [8],
+              "stiffness": [8] or None, "dampings": [8] or None},
+     "legs": {... same with 10 values ...},
+     "pick": "left_hand" | "right_hand" | None,
+     "release": bool}
+
+All angles in rad, positions in m, in the world frame; joints in the original order
+(:data:`pr2_drake.robot.params.ARM_JOINTS`, :data:`LEG_JOINTS`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from pr2_drake.ports import (
+    EFFORT_ARMS,
+    EFFORT_LEGS,
+    N_ARMS,
+    N_LEGS,
+    P_WB,
+    PICK_VALUES,
+    Q_ARMS,
+    Q_LEGS,
+    QUAT_WB,
+    V_ARMS,
+    V_LEGS,
+    V_WB,
+    W_WB,
+    JointGroupCommand,
+    validate_command,
+)
+
+ACTION_KEYS = ("arms", "legs", "pick", "release")
+GROUP_KEYS = ("ctrl_mode", "joint_values", "stiffness", "dampings")
+GROUP_SIZES = {"arms": N_ARMS, "legs": N_LEGS}
+
+
+def joint_and_body_obs(joint_state: np.ndarray, body_state: np.ndarray) -> dict[str, Any]:
+    """obs["agent"] from the testbed's ``joint_state`` and ``body_state`` vectors."""
+    return {
+        "joint_state": {
+            "arms_positions": joint_state[Q_ARMS].copy(),
+            "arms_velocities": joint_state[V_ARMS].copy(),
+            "arms_applied_effort": joint_state[EFFORT_ARMS].copy(),
+            "legs_positions": joint_state[Q_LEGS].copy(),
+            "legs_velocities": joint_state[V_LEGS].copy(),
+            "legs_applied_effort": joint_state[EFFORT_LEGS].copy(),
+        },
+        "body_state": {
+            "world_pos": body_state[P_WB].copy(),
+            "world_orient": body_state[QUAT_WB].copy(),
+            "linear_velocities": body_state[V_WB].copy(),
+            "angular_velocities": body_state[W_WB].copy(),
+        },
+    }
+
+
+def state_vectors_from_obs(obs: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """The inverse of :func:`joint_and_body_obs`: (joint_state, body_state) vectors."""
+    js = obs["agent"]["joint_state"]
+    bs = obs["agent"]["body_state"]
+    joint_state = np.concatenate([
+        js["arms_positions"], js["legs_positions"], js["arms_velocities"], js["legs_velocities"],
+        js["arms_applied_effort"], js["legs_applied_effort"],
+    ]).astype(float)
+    body_state = np.concatenate([
+        bs["world_pos"], bs["world_orient"], bs["linear_velocities"], bs["angular_velocities"],
+    ]).astype(float)
+    return joint_state, body_state
+
+
+def group_command(action: dict[str, Any], group: str) -> JointGroupCommand:
+    """Parse ``action[group]`` into a validated :class:`JointGroupCommand`.
+
+    Raises:
+        ValueError: naming the key and the fault.
+    """
+    where = f"action[{group!r}]"
+    entry = action[group]
+    if isinstance(entry, JointGroupCommand):
+        return validate_command(where, entry, GROUP_SIZES[group])
+    if not isinstance(entry, dict):
+        raise ValueError(f"{where}: expected a dict with keys {GROUP_KEYS}, got {type(entry).__name__}")
+    unknown = set(entry) - set(GROUP_KEYS)
+    if unknown:
+        raise ValueError(f"{where}: unknown keys {sorted(unknown)}; expected {GROUP_KEYS}")
+    if "joint_values" not in entry:
+        raise ValueError(f"{where}: missing 'joint_values'")
+
+    def array(key):
+        value = entry.get(key)
+        if value is None:
+            return None
+        try:
+            return np.asarray(value, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise ValueError(f"{where}[{key!r}]: not numeric: {value!r}") from None
+
+    cmd = JointGroupCommand(
+        mode=entry.get("ctrl_mode", "position"),
+        values=array("joint_values"),
+        stiffness=array("stiffness"),
+        damping=array("dampings"),
+    )
+    return validate_command(where, cmd, GROUP_SIZES[group])
+
+
+def parse_action(action: dict[str, Any]) -> dict[str, Any]:
+    """Validate a PR2 action; returns {"arms": cmd|None, "legs": cmd|None, "pick": str,
+    "release": bool}. Groups absent from the action are None (keep the previous command)."""
+    if not isinstance(action, dict):
+        raise ValueError(f"action: expected a dict with keys {ACTION_KEYS}, got {type(action).__name__}")
+    unknown = set(action) - set(ACTION_KEYS)
+    if unknown:
+        raise ValueError(f"action: unknown keys {sorted(unknown)}; expected some of {ACTION_KEYS}")
+    out: dict[str, Any] = {}
+    for group in ("arms", "legs"):
+        out[group] = group_command(action, group) if action.get(group) is not None else None
+    pick = action.get("pick") or ""
+    if pick not in PICK_VALUES:
+        raise ValueError(f"action['pick']: expected 'left_hand', 'right_hand' or None, got {pick!r}")
+    out["pick"] = pick
+    release = action.get("release", False)
+    if release is None:
+        release = False
+    if not isinstance(release, (bool, np.bool_)):
+        raise ValueError(f"action['release']: expected a bool, got {release!r}")
+    out["release"] = bool(release)
+    return out
+
+
+def command_to_dict(cmd: JointGroupCommand) -> dict[str, Any]:
+    """A JointGroupCommand as the original action's group dict."""
+    return {
+        "ctrl_mode": cmd.mode,
+        "joint_values": np.asarray(cmd.values, dtype=float),
+        "stiffness": None if cmd.stiffness is None else np.asarray(cmd.stiffness, dtype=float),
+        "dampings": None if cmd.damping is None else np.asarray(cmd.damping, dtype=float),
+    }

@@ -1,0 +1,268 @@
+"""What every task shares: its YAML spec, the episode status, and the referee base system.
+
+A task is data plus code: ``tasks/<n>_<name>.yaml`` (read into :class:`TaskSpec`) and a module in
+this package with a scene builder and a :class:`Referee` subclass, registered by id and name in
+:mod:`pr2_drake.tasks`.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.common.yaml import yaml_load_file
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import ContactResults, MultibodyPlant
+from pydrake.multibody.tree import ModelInstanceIndex
+from pydrake.systems.framework import BasicVector, LeafSystem
+
+from pr2_drake.grasp import PickState
+from pr2_drake.robot.model import BASE_BODY
+from pr2_drake.scene import Scene, StartPose
+
+TERMINATIONS = ("completed", "fell", "left_region", "timeout", "diverged")
+
+
+@dataclass
+class ScoreEvent:
+    """One rubric item earned: its id, the points, and the simulated time [s]."""
+
+    item: str
+    points: float
+    time: float
+
+
+@dataclass
+class EpisodeStatus:
+    """The referee's running verdict.
+
+    ``termination`` is "" while the episode runs, then one of :data:`TERMINATIONS`.
+    """
+
+    score: float = 0.0
+    max_score: float = 0.0
+    done: bool = False
+    success: bool = False
+    termination: str = ""
+    items: list[ScoreEvent] = field(default_factory=list)
+    time: float = 0.0
+    # The referee's per-episode memory (timers, phases, counters): plain data, copied on update.
+    memo: dict[str, Any] = field(default_factory=dict)
+
+    def earned(self, item: str) -> bool:
+        return any(e.item == item for e in self.items)
+
+
+@dataclass
+class RubricItem:
+    item: str
+    points: float
+    description: str = ""
+
+
+@dataclass
+class TaskSpec:
+    """A task's YAML, parsed. Distances in m, angles in deg where the key says so, time in s.
+
+    Attributes:
+        start_region: {"center": [x, y], "size": [dx, dy]} rectangle the start is drawn from.
+        nominal_heading_deg, heading_noise_deg: start heading = nominal + U(-noise, noise).
+        arena: {"min": [x, y], "max": [x, y]}: leaving it ends the episode ("left_region").
+        fall_height: the robot has fallen when its base is less than this above the ground.
+        scene: task-specific scene parameters; priors: what the agent is told in advance.
+    """
+
+    id: int
+    name: str
+    title: str
+    time_limit: float
+    rubric: list[RubricItem]
+    start_region: dict[str, list[float]]
+    nominal_heading_deg: float = 0.0
+    heading_noise_deg: float = 30.0
+    arena: dict[str, list[float]] = field(default_factory=dict)
+    fall_height: float = 0.35
+    max_score: float | None = None
+    camera: dict[str, Any] = field(default_factory=dict)
+    feedback: list[str] = field(default_factory=list)
+    priors: dict[str, Any] = field(default_factory=dict)
+    scene: dict[str, Any] = field(default_factory=dict)
+
+    @staticmethod
+    def load(path) -> "TaskSpec":
+        raw = yaml_load_file(str(path))
+        try:
+            rubric = [RubricItem(**r) for r in raw.pop("rubric")]
+            spec = TaskSpec(rubric=rubric, **raw)
+        except TypeError as e:
+            raise ValueError(f"{path}: {e}") from None
+        if spec.max_score is None:
+            spec.max_score = float(sum(r.points for r in rubric if r.points > 0))
+        return spec
+
+    def points(self, item: str) -> float:
+        for r in self.rubric:
+            if r.item == item:
+                return r.points
+        raise KeyError(f"task {self.id}: no rubric item {item!r}")
+
+    def sample_start(self, rng: np.random.Generator) -> StartPose:
+        """Draw the start pose from the start region and heading noise."""
+        cx, cy = self.start_region["center"]
+        dx, dy = self.start_region["size"]
+        x = cx + rng.uniform(-dx / 2, dx / 2)
+        y = cy + rng.uniform(-dy / 2, dy / 2)
+        noise = rng.uniform(-self.heading_noise_deg, self.heading_noise_deg)
+        return StartPose(x, y, float(np.radians(self.nominal_heading_deg + noise)))
+
+
+class Referee(LeafSystem):
+    """Base referee: time limit, falls, leaving the arena; subclasses add the rubric.
+
+    Input ports: ``plant_state`` (full [q; v]), ``contact_results``, ``pick_state``.
+    Output ports: ``score`` (vector of 1), ``episode`` (:class:`EpisodeStatus`),
+    ``task_feedback`` (dict), ``instruction`` (str).
+
+    The verdict is updated every ``period`` seconds of simulated time. Subclasses implement
+    :meth:`judge`, calling :meth:`award` for the items earned, and may override
+    :meth:`feedback` and :meth:`instruction`.
+    """
+
+    def __init__(self, spec: TaskSpec, plant: MultibodyPlant, robot: ModelInstanceIndex,
+                 scene: Scene, period: float = 0.01):
+        super().__init__()
+        self.spec = spec
+        self.plant = plant
+        self.robot = robot
+        self.scene = scene
+        self.ctx = plant.CreateDefaultContext()
+        self.base = plant.GetBodyByName(BASE_BODY, robot)
+        self._state_in = self.DeclareVectorInputPort(
+            "plant_state", plant.num_positions() + plant.num_velocities()
+        )
+        self._contacts_in = self.DeclareAbstractInputPort(
+            "contact_results", AbstractValue.Make(ContactResults())
+        )
+        self._pick_in = self.DeclareAbstractInputPort("pick_state", AbstractValue.Make(PickState()))
+        self._status = self.DeclareAbstractState(
+            AbstractValue.Make(EpisodeStatus(max_score=spec.max_score))
+        )
+        self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update)
+        self.DeclareVectorOutputPort("score", 1, self._calc_score)
+        self.DeclareStateOutputPort("episode", self._status)
+        self.DeclareAbstractOutputPort(
+            "task_feedback", lambda: AbstractValue.Make(dict()), self._calc_feedback
+        )
+        self.DeclareAbstractOutputPort(
+            "instruction", lambda: AbstractValue.Make(""), self._calc_instruction
+        )
+
+    # -- for subclasses -----------------------------------------------------------------------
+    def judge(self, context, status: EpisodeStatus) -> None:
+        """Award the rubric items earned by now (self.ctx holds the plant state)."""
+
+    def feedback(self, context) -> dict[str, Any]:
+        """Task-specific feedback for the agent (e.g. the bar's position)."""
+        return {}
+
+    def instruction(self) -> str:
+        return ""
+
+    def award(self, status: EpisodeStatus, item: str, time: float) -> None:
+        """Record ``item`` once, with the rubric's points."""
+        if status.earned(item):
+            return
+        points = self.spec.points(item)
+        status.items.append(ScoreEvent(item, points, time))
+        status.score = float(np.clip(sum(e.points for e in status.items), 0.0, self.spec.max_score))
+
+    def contact_results(self, context) -> ContactResults:
+        return self._contacts_in.Eval(context)
+
+    def pick_state(self, context) -> PickState:
+        return self._pick_in.Eval(context)
+
+    def X_WB(self) -> RigidTransform:
+        return self.plant.EvalBodyPoseInWorld(self.ctx, self.base)
+
+    def completed(self, status: EpisodeStatus) -> bool:
+        """Whether the task is complete (default: every positive item earned)."""
+        return all(status.earned(r.item) for r in self.spec.rubric if r.points > 0)
+
+    # -- machinery ----------------------------------------------------------------------------
+    def _update(self, context, state) -> None:
+        status: EpisodeStatus = context.get_abstract_state(int(self._status)).get_value()
+        if status.done:
+            return
+        status = _copy_status(status)
+        t = context.get_time()
+        status.time = t
+        x = self._state_in.Eval(context)
+        if not np.all(np.isfinite(x)):
+            self._end(status, "diverged")
+        else:
+            self.plant.SetPositionsAndVelocities(self.ctx, x)
+            self.judge(context, status)
+            p = self.X_WB().translation()
+            if self.completed(status):
+                self._end(status, "completed", success=True)
+            elif p[2] - self.scene.ground_height(p[0], p[1]) < self.spec.fall_height:
+                self._end(status, "fell")
+            elif self.spec.arena and not _inside(p, self.spec.arena):
+                self._end(status, "left_region")
+            elif t >= self.spec.time_limit:
+                self._end(status, "timeout")
+        state.get_mutable_abstract_state(int(self._status)).set_value(status)
+
+    @staticmethod
+    def _end(status: EpisodeStatus, reason: str, success: bool = False) -> None:
+        status.done = True
+        status.termination = reason
+        status.success = success
+
+    def _calc_score(self, context, output: BasicVector) -> None:
+        output.SetAtIndex(0, context.get_abstract_state(int(self._status)).get_value().score)
+
+    def _calc_feedback(self, context, output) -> None:
+        output.set_value(self.feedback(context))
+
+    def _calc_instruction(self, context, output) -> None:
+        output.set_value(self.instruction())
+
+
+def _copy_status(s: EpisodeStatus) -> EpisodeStatus:
+    return EpisodeStatus(s.score, s.max_score, s.done, s.success, s.termination, list(s.items),
+                         s.time, copy.deepcopy(s.memo))
+
+
+def _inside(p: np.ndarray, box: dict[str, list[float]]) -> bool:
+    lo, hi = box["min"], box["max"]
+    return lo[0] <= p[0] <= hi[0] and lo[1] <= p[1] <= hi[1]
+
+
+class TaskDefinition:
+    """A registered task: its spec plus the code that builds its scene and referee.
+
+    Subclasses implement :meth:`build_scene` and :meth:`make_referee`.
+    """
+
+    def __init__(self, spec: TaskSpec):
+        self.spec = spec
+
+    @property
+    def id(self) -> int:
+        return self.spec.id
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    def build_scene(self, plant: MultibodyPlant, rng: np.random.Generator) -> Scene:
+        raise NotImplementedError
+
+    def make_referee(self, plant: MultibodyPlant, robot: ModelInstanceIndex,
+                     scene: Scene) -> Referee:
+        raise NotImplementedError

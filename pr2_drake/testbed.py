@@ -1,0 +1,274 @@
+"""build_testbed(): the whole testbed as one Drake Diagram with the PR2 port contract.
+
+Inside: MultibodyPlant (discrete SAP) + SceneGraph, the task scene, KUAVO, the actuation adapter,
+the grasp system, the head RGB-D camera (optional), the task referee (when a task is given) and,
+optionally, a MeshcatVisualizer.
+
+Input ports:  ``arms_command``, ``legs_command`` (JointGroupCommand), ``pick`` (str),
+``release`` (bool).
+Output ports: ``joint_state`` (54), ``body_state`` (13) (layouts in :mod:`pr2_drake.ports`),
+``pick_state`` (PickState), ``plant_state`` (full plant [q; v]), ``contact_results``,
+``rgbd`` (RgbdFrame, when the camera is on), and with a task: ``score`` (1), ``episode``
+(EpisodeStatus), ``task_feedback`` (dict), ``instruction`` (str).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Role
+from pydrake.multibody.plant import (
+    AddMultibodyPlant,
+    MultibodyPlant,
+    MultibodyPlantConfig,
+)
+from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.primitives import MatrixGain, Multiplexer, ZeroOrderHold
+
+from pr2_drake.actuation import ActuationAdapter
+from pr2_drake.camera import CameraSettings, add_head_camera
+from pr2_drake.grasp import GraspSystem
+from pr2_drake.ports import BODY_STATE_SIZE, N_JOINTS
+from pr2_drake.robot.model import BASE_BODY, KuavoMaps, add_kuavo, standing_base_pose
+from pr2_drake.robot.params import RobotParams, load_robot_params
+from pr2_drake.scene import Scene, StartPose, build_flat_scene
+
+CONTACT_APPROXIMATIONS = ("lagged", "sap", "similar", "tamsi")
+
+
+@dataclass
+class TestbedConfig:
+    """How to build the testbed.
+
+    Attributes:
+        task: task id (1..6) or name; None for flat ground with no referee.
+        seed: episode seed; every random choice (start pose, object placement) flows from it.
+        time_step: physics step [s] of the discrete plant.
+        contact_approximation: SAP variant of MultibodyPlant ("lagged" is the cheapest).
+        camera: head RGB-D camera settings (off by default; tasks that need it turn it on).
+        start: override the start pose (None: the task's seeded start, or the origin).
+        arm_gains, leg_gains: default (stiffness [Nm/rad], damping [Nm s/rad]) of the
+            position/velocity modes when a command carries none.
+        grasp_period: how often pick/release commands are sampled [s].
+    """
+
+    __test__ = False  # not a pytest test class
+
+    task: int | str | None = None
+    seed: int = 0
+    time_step: float = 0.001
+    contact_approximation: str = "lagged"
+    camera: CameraSettings = field(default_factory=CameraSettings)
+    start: StartPose | None = None
+    arm_gains: tuple[float, float] = (60.0, 3.0)
+    leg_gains: tuple[float, float] = (400.0, 8.0)
+    grasp_period: float = 0.01
+
+    def validate(self) -> None:
+        if not (0 < self.time_step <= 0.02):
+            raise ValueError(f"time_step must be in (0, 0.02] s, got {self.time_step}")
+        if self.contact_approximation not in CONTACT_APPROXIMATIONS:
+            raise ValueError(
+                f"contact_approximation must be one of {CONTACT_APPROXIMATIONS}, "
+                f"got {self.contact_approximation!r}"
+            )
+        for name in ("arm_gains", "leg_gains"):
+            k, d = getattr(self, name)
+            if k < 0 or d < 0 or not np.isfinite([k, d]).all():
+                raise ValueError(f"{name} must be finite and non-negative, got {(k, d)}")
+        self.camera.validate()
+
+
+class Testbed(Diagram):
+    """The testbed diagram. Build it with :func:`build_testbed`.
+
+    Attributes:
+        config: the configuration it was built from.
+        plant: the MultibodyPlant; ``robot`` its KUAVO model instance; ``maps`` index maps.
+        scene: the task scene (start pose, priors, graspables).
+        task: the task definition, or None.
+        meshcat: the Meshcat instance it draws to, or None.
+    """
+
+    __test__ = False
+
+    def __init__(self, config: TestbedConfig, meshcat: Meshcat | None = None,
+                 params: RobotParams | None = None):
+        super().__init__()
+        config.validate()
+        self.config = config
+        self.params = params or load_robot_params()
+        self.meshcat = meshcat
+        self.task = None
+        rng = np.random.default_rng(config.seed)
+
+        builder = DiagramBuilder()
+        plant_config = MultibodyPlantConfig(
+            time_step=config.time_step,
+            discrete_contact_approximation=config.contact_approximation,
+            penetration_allowance=0.001,
+        )
+        plant, scene_graph = AddMultibodyPlant(plant_config, builder)
+        self.plant: MultibodyPlant = plant
+        self.scene_graph = scene_graph
+        self.robot = add_kuavo(plant)
+
+        if config.task is None:
+            self.scene: Scene = build_flat_scene(plant, rng)
+        else:
+            from pr2_drake.tasks import get_task
+
+            self.task = get_task(config.task)
+            self.scene = self.task.build_scene(plant, rng)
+        plant.Finalize()
+        self.maps = KuavoMaps.from_plant(plant, self.robot)
+        self._set_default_pose(config.start or self.scene.start)
+
+        for add_system in self.scene.add_systems:
+            add_system(builder, plant)
+        self._add_actuation(builder)
+        self._add_observations(builder)
+        self._add_grasp(builder)
+        if config.camera.enabled:
+            self._add_camera(builder)
+        if self.task is not None:
+            self._add_referee(builder)
+        if meshcat is not None:
+            MeshcatVisualizer.AddToBuilder(
+                builder, scene_graph, meshcat, MeshcatVisualizerParams(role=Role.kIllustration)
+            )
+        builder.ExportOutput(plant.get_state_output_port(), "plant_state")
+        builder.ExportOutput(plant.get_contact_results_output_port(), "contact_results")
+        builder.BuildInto(self)
+        self.set_name("testbed")
+
+    # -- construction -------------------------------------------------------------------------
+    def _set_default_pose(self, start: StartPose) -> None:
+        plant, robot = self.plant, self.robot
+        joints = np.concatenate(
+            [self.params.default_positions("arms"), self.params.default_positions("legs")]
+        )
+        ground = float(self.scene.ground_height(start.x, start.y))
+        X_WB = standing_base_pose(plant, robot, joints, (start.x, start.y), start.yaw, ground)
+        plant.SetDefaultFloatingBaseBodyPose(plant.GetBodyByName(BASE_BODY, robot), X_WB)
+        for spec, angle in zip(self.params.joints, joints):
+            plant.GetJointByName(spec.name, robot).set_default_angle(float(angle))
+        self.X_WB_start = X_WB
+        self.default_joints = joints
+
+    def _add_actuation(self, builder: DiagramBuilder) -> None:
+        plant, maps = self.plant, self.maps
+        gains = {"arms": self.config.arm_gains, "legs": self.config.leg_gains}
+        adapter = builder.AddNamedSystem(
+            "actuation", ActuationAdapter(self.params, maps, gains, self.stable_gain_limits())
+        )
+        builder.Connect(plant.get_state_output_port(self.robot), adapter.GetInputPort("robot_state"))
+        builder.Connect(adapter.GetOutputPort("actuation"), plant.get_actuation_input_port(self.robot))
+        builder.ExportInput(adapter.GetInputPort("arms_command"), "arms_command")
+        builder.ExportInput(adapter.GetInputPort("legs_command"), "legs_command")
+        # Applied efforts in the original order, held for one step (breaks the algebraic loop
+        # joint_state -> controller -> command -> effort).
+        n_act = len(maps.actuators)
+        P = np.zeros((N_JOINTS, n_act))
+        P[np.arange(N_JOINTS), maps.actuators] = 1.0
+        to_original = builder.AddNamedSystem("effort_to_original_order", MatrixGain(P))
+        hold = builder.AddNamedSystem(
+            "applied_effort_hold", ZeroOrderHold(self.config.time_step, N_JOINTS)
+        )
+        builder.Connect(adapter.GetOutputPort("actuation"), to_original.get_input_port())
+        builder.Connect(to_original.get_output_port(), hold.get_input_port())
+        self._effort_hold = hold
+
+    def _add_observations(self, builder: DiagramBuilder) -> None:
+        maps = self.maps
+        n_x = maps.nq + maps.nv
+        S = np.zeros((2 * N_JOINTS, n_x))
+        S[np.arange(N_JOINTS), maps.q_joints] = 1.0
+        S[N_JOINTS + np.arange(N_JOINTS), maps.nq + maps.v_joints] = 1.0
+        select = builder.AddNamedSystem("joint_select", MatrixGain(S))
+        mux = builder.AddNamedSystem("joint_state_mux", Multiplexer([2 * N_JOINTS, N_JOINTS]))
+        robot_state = self.plant.get_state_output_port(self.robot)
+        builder.Connect(robot_state, select.get_input_port())
+        builder.Connect(select.get_output_port(), mux.get_input_port(0))
+        builder.Connect(self._effort_hold.get_output_port(), mux.get_input_port(1))
+        builder.ExportOutput(mux.get_output_port(), "joint_state")
+
+        qb, vb = maps.q_base, maps.nq + maps.v_base
+        order = [qb[4], qb[5], qb[6], qb[0], qb[1], qb[2], qb[3], vb[3], vb[4], vb[5], vb[0],
+                 vb[1], vb[2]]
+        B = np.zeros((BODY_STATE_SIZE, n_x))
+        B[np.arange(BODY_STATE_SIZE), order] = 1.0
+        body = builder.AddNamedSystem("body_select", MatrixGain(B))
+        builder.Connect(robot_state, body.get_input_port())
+        builder.ExportOutput(body.get_output_port(), "body_state")
+
+    def _add_grasp(self, builder: DiagramBuilder) -> None:
+        grasp = builder.AddNamedSystem(
+            "grasp",
+            GraspSystem(self.plant, self.robot, self.scene.graspables, self.config.grasp_period),
+        )
+        builder.Connect(self.plant.get_state_output_port(), grasp.GetInputPort("plant_state"))
+        if self.scene.graspables:
+            builder.Connect(
+                grasp.GetOutputPort("spatial_forces"),
+                self.plant.get_applied_spatial_force_input_port(),
+            )
+        builder.ExportInput(grasp.GetInputPort("pick"), "pick")
+        builder.ExportInput(grasp.GetInputPort("release"), "release")
+        builder.ExportOutput(grasp.GetOutputPort("pick_state"), "pick_state")
+        self.grasp = grasp
+
+    def _add_camera(self, builder: DiagramBuilder) -> None:
+        frame = self.plant.GetFrameByName("head_camera", self.robot)
+        body_frame_id = self.plant.GetBodyFrameIdOrThrow(frame.body().index())
+        converter = add_head_camera(
+            builder,
+            self.scene_graph,
+            body_frame_id,
+            frame.GetFixedPoseInBodyFrame(),
+            self.config.camera,
+        )
+        builder.ExportOutput(converter.GetOutputPort("rgbd"), "rgbd")
+
+    def _add_referee(self, builder: DiagramBuilder) -> None:
+        referee = builder.AddNamedSystem(
+            "referee", self.task.make_referee(self.plant, self.robot, self.scene)
+        )
+        builder.Connect(self.plant.get_state_output_port(), referee.GetInputPort("plant_state"))
+        builder.Connect(
+            self.plant.get_contact_results_output_port(), referee.GetInputPort("contact_results")
+        )
+        builder.Connect(self.grasp.GetOutputPort("pick_state"), referee.GetInputPort("pick_state"))
+        for name in ("score", "episode", "task_feedback", "instruction"):
+            builder.ExportOutput(referee.GetOutputPort(name), name)
+        self.referee = referee
+
+    def stable_gain_limits(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Per-joint (max stiffness [Nm/rad], max damping [Nm s/rad]) of the explicit
+        spring-damper at this time step: I/dt^2 and I/dt, with I the smallest joint-space
+        inertia diagonal at the nominal and the zero pose."""
+        plant, maps, dt = self.plant, self.maps, self.config.time_step
+        ctx = plant.CreateDefaultContext()
+        inertia = np.full(N_JOINTS, np.inf)
+        v_full = plant.GetVelocitiesFromArray(
+            self.robot, np.arange(plant.num_velocities(), dtype=float)
+        ).astype(int)
+        for joints in (self.default_joints, np.zeros(N_JOINTS)):
+            q = plant.GetPositions(ctx, self.robot)
+            q[maps.q_joints] = joints
+            plant.SetPositions(ctx, self.robot, q)
+            diag = np.diag(plant.CalcMassMatrix(ctx))[v_full[maps.v_joints]]
+            inertia = np.minimum(inertia, diag)
+        n_arms = len(self.params.group("arms"))
+        arms, legs = inertia[:n_arms], inertia[n_arms:]
+        return {"arms": (arms / dt**2, arms / dt), "legs": (legs / dt**2, legs / dt)}
+
+    # -- conveniences -------------------------------------------------------------------------
+    def has_camera(self) -> bool:
+        return self.config.camera.enabled
+
+
+def build_testbed(config: TestbedConfig | None = None, meshcat: Meshcat | None = None) -> Testbed:
+    """Build the testbed diagram (see the module docstring for its ports)."""
+    return Testbed(config or TestbedConfig(), meshcat)
