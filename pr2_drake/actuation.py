@@ -80,25 +80,49 @@ class ActuationAdapter(LeafSystem):
     def _calc_actuation(self, context, output: BasicVector) -> None:
         x = self._state_port.Eval(context)
         tau = np.zeros(self._n_act)
-        for group, g in self._groups.items():
-            port = g["port"]
-            if not port.HasValue(context):
+        for g in self._groups.values():
+            try:
+                cmd = g["port"].Eval(context)
+            except RuntimeError:  # neither connected nor fixed: zero effort
                 continue
-            cmd = validate_command(port.get_name(), port.Eval(context), g["n"])
-            tau[g["act"]] = np.clip(self.group_effort(cmd, x[g["q"]], x[g["v"]], g), -g["limit"],
-                                    g["limit"])
+            mode, values, stiffness, damping = self._prepared(cmd, g)
+            if mode == "effort":
+                effort = values
+            elif mode == "velocity":
+                effort = damping * (values - x[g["v"]])
+            else:
+                effort = stiffness * (values - x[g["q"]]) - damping * x[g["v"]]
+            tau[g["act"]] = np.clip(effort, -g["limit"], g["limit"])
         output.SetFromVector(tau)
 
-    def group_effort(self, cmd: JointGroupCommand, q: np.ndarray, v: np.ndarray,
-                     g: dict) -> np.ndarray:
-        """Unclamped effort of one group [Nm] for its positions q [rad] and velocities v."""
-        if cmd.mode == "effort":
-            return np.asarray(cmd.values, dtype=float)
+    def _prepared(self, cmd: JointGroupCommand, g: dict):
+        """Validated command with its effective gains, recomputed only when the command
+        object changes (Drake hands back the same object until the upstream value changes)."""
+        cached = g.get("cache")
+        if cached is not None and cached[0] is cmd:
+            return cached[1]
+        validate_command(g["port"].get_name(), cmd, g["n"])
+        values = np.asarray(cmd.values, dtype=float)
         damping = g["damping"] if cmd.damping is None else self._cap(g, cmd.damping, "d_max")
-        if cmd.mode == "velocity":
-            return damping * (cmd.values - v)
-        stiffness = g["stiffness"] if cmd.stiffness is None else self._cap(g, cmd.stiffness, "k_max")
-        return stiffness * (cmd.values - q) - damping * v
+        stiffness = (g["stiffness"] if cmd.stiffness is None
+                     else self._cap(g, cmd.stiffness, "k_max"))
+        prepared = (cmd.mode, values, stiffness, damping)
+        g["cache"] = (cmd, prepared)
+        return prepared
+
+    def group_effort(self, cmd: JointGroupCommand, q: np.ndarray, v: np.ndarray,
+                     group: str) -> np.ndarray:
+        """Clamped effort [Nm] of ``group`` for a command at positions q [rad] and
+        velocities v [rad/s] (the law the adapter applies, for tests and tools)."""
+        g = self._groups[group]
+        mode, values, stiffness, damping = self._prepared(cmd, g)
+        if mode == "effort":
+            effort = values
+        elif mode == "velocity":
+            effort = damping * (values - v)
+        else:
+            effort = stiffness * (values - q) - damping * v
+        return np.clip(effort, -g["limit"], g["limit"])
 
     @staticmethod
     def _cap(g: dict, gains: np.ndarray, limit: str) -> np.ndarray:

@@ -75,10 +75,6 @@ def _print_report(report: dict[str, Any], out=sys.stdout) -> None:
 
 
 def cmd_run(args) -> int:
-    if args.diagram:
-        from pr2_drake.diagrams import run_diagram_file
-
-        return run_diagram_file(args.diagram, args)
     from pydrake.geometry import Meshcat
 
     from pr2_drake.episode import EpisodeOptions, run_episode
@@ -88,7 +84,8 @@ def cmd_run(args) -> int:
         meshcat = Meshcat()
         print(f"Meshcat: {meshcat.web_url()}", flush=True)
     opts = EpisodeOptions(
-        task=args.task, seed=args.seed, agent=args.agent, seconds=args.seconds,
+        task=args.task, seed=args.seed, agent=args.agent, diagram=args.diagram,
+        seconds=args.seconds,
         time_step=args.time_step, camera=_camera_settings(args), meshcat=meshcat,
         record=args.record, progress=None if args.quiet else sys.stderr,
     )

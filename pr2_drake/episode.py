@@ -44,6 +44,7 @@ class EpisodeOptions:
         task: task id or name; None = flat ground, no referee (runs ``seconds``).
         seed: episode seed.
         agent: "module:Class"; None = the task's default agent.
+        diagram: a diagram YAML (see :mod:`pr2_drake.diagrams`) whose blocks replace the agent.
         seconds: stop after this much simulated time [s] (default: the task's time limit).
         time_step: physics step [s].
         camera: camera settings override (None: the task's own choice).
@@ -56,6 +57,7 @@ class EpisodeOptions:
     task: int | str | None = None
     seed: int = 0
     agent: str | None = None
+    diagram: str | None = None
     seconds: float | None = None
     time_step: float = 0.001
     camera: CameraSettings | None = None
@@ -96,8 +98,18 @@ class _Progress:
 def run_episode(opts: EpisodeOptions) -> dict[str, Any]:
     """Simulate one episode and return its report (see ``report.json`` in the README)."""
     wall_start = time.perf_counter()
-    agent_spec = opts.agent or DEFAULT_AGENTS.get(_task_key(opts.task))
-    cls = load_agent_class(agent_spec)
+    diagram = None
+    if opts.diagram:
+        from pr2_drake.diagrams import load_diagram_spec
+
+        diagram = load_diagram_spec(opts.diagram)
+        if opts.agent:
+            raise ValueError("give either a diagram YAML or --agent, not both")
+        opts = replace(opts, task=opts.task if opts.task is not None else diagram.task)
+        agent_spec = opts.diagram
+    else:
+        agent_spec = opts.agent or DEFAULT_AGENTS.get(_task_key(opts.task))
+        cls = load_agent_class(agent_spec)
     meshcat = opts.meshcat
     if opts.record and meshcat is None:
         meshcat = Meshcat()
@@ -107,12 +119,17 @@ def run_episode(opts: EpisodeOptions) -> dict[str, Any]:
         if not opts.seconds > 0:
             raise ValueError(f"seconds must be positive, got {opts.seconds}")
         limit = min(limit, opts.seconds) if testbed.task is not None else opts.seconds
-    agent = instantiate_agent(cls, priors=dict(testbed.scene.priors), task=opts.task,
-                              seed=opts.seed)
+    context = dict(priors=dict(testbed.scene.priors), task=opts.task, seed=opts.seed)
     if meshcat is not None and opts.record:
         meshcat.StartRecording()
-    if is_system_agent(agent):
-        runner = _SystemRunner(testbed, agent, limit)
+    if diagram is not None:
+        from pr2_drake.diagrams import wire_diagram
+
+        runner = _SystemRunner(testbed, lambda b: wire_diagram(b, testbed, diagram, **context),
+                               limit)
+    elif is_system_agent(agent := instantiate_agent(cls, **context)):
+        runner = _SystemRunner(testbed, lambda b: connect_by_name(b, testbed, b.AddSystem(agent)),
+                               limit)
     elif is_policy_agent(agent):
         runner = _PolicyRunner(testbed, agent, limit)
     else:
@@ -172,15 +189,14 @@ def _free_status(t: float, z: float, limit: float) -> EpisodeStatus:
 
 
 class _SystemRunner:
-    """Testbed and a Drake System agent wired by port name, simulated in chunks."""
+    """Testbed plus blocks added by ``wire(builder)``, simulated in chunks."""
 
     CHUNK = 0.05  # simulated seconds between verdict checks
 
-    def __init__(self, testbed: Testbed, agent, limit: float):
+    def __init__(self, testbed: Testbed, wire, limit: float):
         builder = DiagramBuilder()
         builder.AddSystem(testbed)
-        builder.AddSystem(agent)
-        connect_by_name(builder, testbed, agent)
+        wire(builder)
         self.diagram = builder.Build()
         self.testbed, self.limit = testbed, limit
         self.simulator = Simulator(self.diagram)

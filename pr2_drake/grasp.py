@@ -144,16 +144,22 @@ class GraspSystem(LeafSystem):
         self._set_state(context)
         X_WH = self._pose(self._hands[pick])
         p_WH = X_WH.translation()
+        # Of the objects whose condition holds, latch the one whose origin is nearest the hand.
+        best = None
         for i, g in enumerate(self._graspables):
             X_WO = self._pose(self._plant.get_body(g.body))
             if g.can_pick(p_WH, X_WO):
-                # A is the material point of the object under the hand centre at pick time.
-                p_OA = X_WO.inverse().multiply(p_WH)
-                R_HO = (X_WH.rotation().inverse() @ X_WO.rotation()).matrix()
-                state.get_mutable_abstract_state(0).set_value(
-                    _Attachment(pick, i, p_OA, R_HO, context.get_time())
-                )
-                return
+                d = float(np.linalg.norm(X_WO.translation() - p_WH))
+                if best is None or d < best[0]:
+                    best = (d, i, X_WO)
+        if best is not None:
+            _, i, X_WO = best
+            # A is the material point of the object under the hand centre at pick time.
+            p_OA = X_WO.inverse().multiply(p_WH)
+            R_HO = (X_WH.rotation().inverse() @ X_WO.rotation()).matrix()
+            state.get_mutable_abstract_state(0).set_value(
+                _Attachment(pick, i, p_OA, R_HO, context.get_time())
+            )
 
     # -- outputs ------------------------------------------------------------------------------
     def _calc_pick_state(self, context, output) -> None:

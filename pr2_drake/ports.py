@@ -78,6 +78,15 @@ class JointGroupCommand:
     stiffness: np.ndarray | None = None
     damping: np.ndarray | None = None
 
+    def __deepcopy__(self, memo) -> "JointGroupCommand":
+        # Drake copies abstract values often (state updates, output caches): keep it cheap.
+        return JointGroupCommand(
+            self.mode,
+            np.array(self.values, dtype=float),
+            None if self.stiffness is None else np.array(self.stiffness, dtype=float),
+            None if self.damping is None else np.array(self.damping, dtype=float),
+        )
+
     @staticmethod
     def effort(values) -> "JointGroupCommand":
         return JointGroupCommand("effort", np.asarray(values, dtype=float))

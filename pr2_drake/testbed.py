@@ -24,7 +24,7 @@ from pydrake.multibody.plant import (
     MultibodyPlantConfig,
 )
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import MatrixGain, Multiplexer, ZeroOrderHold
+from pydrake.systems.primitives import MatrixGain, Multiplexer
 
 from pr2_drake.actuation import ActuationAdapter
 from pr2_drake.camera import CameraSettings, add_head_camera
@@ -35,6 +35,7 @@ from pr2_drake.robot.params import RobotParams, load_robot_params
 from pr2_drake.scene import Scene, StartPose, build_flat_scene
 
 CONTACT_APPROXIMATIONS = ("lagged", "sap", "similar", "tamsi")
+CONTACT_MODELS = ("point", "hydroelastic_with_fallback", "hydroelastic")
 
 
 @dataclass
@@ -46,6 +47,8 @@ class TestbedConfig:
         seed: episode seed; every random choice (start pose, object placement) flows from it.
         time_step: physics step [s] of the discrete plant.
         contact_approximation: SAP variant of MultibodyPlant ("lagged" is the cheapest).
+        contact_model: "point" (default; rigid terrain needs no more) or
+            "hydroelastic_with_fallback" (costlier; only compliant geometry benefits).
         camera: head RGB-D camera settings (off by default; tasks that need it turn it on).
         start: override the start pose (None: the task's seeded start, or the origin).
         arm_gains, leg_gains: default (stiffness [Nm/rad], damping [Nm s/rad]) of the
@@ -59,6 +62,7 @@ class TestbedConfig:
     seed: int = 0
     time_step: float = 0.001
     contact_approximation: str = "lagged"
+    contact_model: str = "point"
     camera: CameraSettings = field(default_factory=CameraSettings)
     start: StartPose | None = None
     arm_gains: tuple[float, float] = (60.0, 3.0)
@@ -72,6 +76,10 @@ class TestbedConfig:
             raise ValueError(
                 f"contact_approximation must be one of {CONTACT_APPROXIMATIONS}, "
                 f"got {self.contact_approximation!r}"
+            )
+        if self.contact_model not in CONTACT_MODELS:
+            raise ValueError(
+                f"contact_model must be one of {CONTACT_MODELS}, got {self.contact_model!r}"
             )
         for name in ("arm_gains", "leg_gains"):
             k, d = getattr(self, name)
@@ -108,6 +116,8 @@ class Testbed(Diagram):
             time_step=config.time_step,
             discrete_contact_approximation=config.contact_approximation,
             penetration_allowance=0.001,
+            use_sampled_output_ports=True,
+            contact_model=config.contact_model,
         )
         plant, scene_graph = AddMultibodyPlant(plant_config, builder)
         self.plant: MultibodyPlant = plant
@@ -130,7 +140,8 @@ class Testbed(Diagram):
         self._add_actuation(builder)
         self._add_observations(builder)
         self._add_grasp(builder)
-        if config.camera.enabled:
+        self.camera = _resolve_camera(config.camera, self.task)
+        if self.camera.enabled:
             self._add_camera(builder)
         if self.task is not None:
             self._add_referee(builder)
@@ -167,18 +178,14 @@ class Testbed(Diagram):
         builder.Connect(adapter.GetOutputPort("actuation"), plant.get_actuation_input_port(self.robot))
         builder.ExportInput(adapter.GetInputPort("arms_command"), "arms_command")
         builder.ExportInput(adapter.GetInputPort("legs_command"), "legs_command")
-        # Applied efforts in the original order, held for one step (breaks the algebraic loop
-        # joint_state -> controller -> command -> effort).
+        # Applied efforts in the original order: the plant's sampled net actuation of the last
+        # step (no direct feedthrough, so joint_state -> controller -> command is no loop).
         n_act = len(maps.actuators)
         P = np.zeros((N_JOINTS, n_act))
         P[np.arange(N_JOINTS), maps.actuators] = 1.0
         to_original = builder.AddNamedSystem("effort_to_original_order", MatrixGain(P))
-        hold = builder.AddNamedSystem(
-            "applied_effort_hold", ZeroOrderHold(self.config.time_step, N_JOINTS)
-        )
-        builder.Connect(adapter.GetOutputPort("actuation"), to_original.get_input_port())
-        builder.Connect(to_original.get_output_port(), hold.get_input_port())
-        self._effort_hold = hold
+        builder.Connect(plant.get_net_actuation_output_port(self.robot), to_original.get_input_port())
+        self._applied_effort = to_original.get_output_port()
 
     def _add_observations(self, builder: DiagramBuilder) -> None:
         maps = self.maps
@@ -191,7 +198,7 @@ class Testbed(Diagram):
         robot_state = self.plant.get_state_output_port(self.robot)
         builder.Connect(robot_state, select.get_input_port())
         builder.Connect(select.get_output_port(), mux.get_input_port(0))
-        builder.Connect(self._effort_hold.get_output_port(), mux.get_input_port(1))
+        builder.Connect(self._applied_effort, mux.get_input_port(1))
         builder.ExportOutput(mux.get_output_port(), "joint_state")
 
         qb, vb = maps.q_base, maps.nq + maps.v_base
@@ -227,7 +234,7 @@ class Testbed(Diagram):
             self.scene_graph,
             body_frame_id,
             frame.GetFixedPoseInBodyFrame(),
-            self.config.camera,
+            self.camera,
         )
         builder.ExportOutput(converter.GetOutputPort("rgbd"), "rgbd")
 
@@ -266,7 +273,19 @@ class Testbed(Diagram):
 
     # -- conveniences -------------------------------------------------------------------------
     def has_camera(self) -> bool:
-        return self.config.camera.enabled
+        return self.camera.enabled
+
+
+def _resolve_camera(camera: CameraSettings, task) -> CameraSettings:
+    """The user's camera settings; left at the defaults, the task YAML's ``camera`` block wins."""
+    if task is None or not task.spec.camera or camera != CameraSettings():
+        return camera
+    try:
+        settings = CameraSettings(**task.spec.camera)
+    except TypeError as e:
+        raise ValueError(f"task {task.id}: bad camera block {task.spec.camera}: {e}") from None
+    settings.validate()
+    return settings
 
 
 def build_testbed(config: TestbedConfig | None = None, meshcat: Meshcat | None = None) -> Testbed:

@@ -1,0 +1,49 @@
+"""The pr2-drake command line, run as a user runs it."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+
+def _cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "pr2_drake.cli", *args], capture_output=True,
+                          text=True, cwd=cwd, timeout=600)
+
+
+def test_run_writes_report_and_replay(tmp_path):
+    report, replay = tmp_path / "report.json", tmp_path / "replay.html"
+    out = _cli("run", "--seconds", "0.5", "--report", str(report), "--record", str(replay))
+    assert out.returncode == 0, out.stderr
+    r = json.loads(report.read_text())
+    for key in ("task", "seed", "score", "max_score", "success", "termination", "items",
+                "sim_time", "wall_time"):
+        assert key in r
+    assert r["termination"] == "timeout" and r["sim_time"] == pytest.approx(0.5)
+    html = replay.read_text()
+    assert "<html" in html.lower() and "meshcat" in html.lower()
+    assert "score 0 / 0" in out.stdout
+
+
+def test_progress_lines_on_long_runs():
+    out = _cli("run", "--seconds", "4")
+    assert out.returncode == 0, out.stderr
+    assert "real-time factor" in out.stderr
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (("run", "--agent", "nosuchmodule:Agent", "--seconds", "0.1"), "cannot import module 'nosuchmodule'"),
+        (("run", "--agent", "pr2_drake.agents:Nope", "--seconds", "0.1"), "has no 'Nope'"),
+        (("run", "--agent", "justaname", "--seconds", "0.1"), "module:Class"),
+        (("run", "--task", "99"), "unknown task 99"),
+        (("run", "--seconds", "-1"), "seconds must be positive"),
+    ],
+)
+def test_bad_arguments_give_clear_errors(args, message):
+    out = _cli(*args)
+    assert out.returncode == 2
+    assert message in out.stderr
+    assert "Traceback" not in out.stderr
