@@ -92,7 +92,7 @@ def bench_camera(argv: list[str]) -> int:
     p = argparse.ArgumentParser(prog="pr2-drake bench camera")
     p.add_argument("--resolutions", default="640x480,1280x720")
     p.add_argument("--task", default=None)
-    p.add_argument("--quality", default="medium", choices=("low", "medium", "high"))
+    p.add_argument("--quality", default="low", choices=("low", "medium", "high"))
     p.add_argument("--frames", type=int, default=30)
     a = p.parse_args(argv)
     where = f"task {a.task}" if a.task else "flat ground"

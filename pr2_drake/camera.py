@@ -18,7 +18,7 @@ from pydrake.geometry import (
 )
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
-from pydrake.systems.sensors import CameraInfo, ImageDepth32F, ImageRgba8U, RgbdSensor, RgbdSensorDiscrete
+from pydrake.systems.sensors import CameraInfo, ImageDepth32F, ImageRgba8U, RgbdSensor
 
 RENDERER_NAME = "pr2_vtk"
 QUALITIES = ("low", "medium", "high")
@@ -43,7 +43,7 @@ class CameraSettings:
     height: int = 480
     fps: float = 10.0
     fov_y_deg: float = 60.0
-    quality: str = "medium"
+    quality: str = "low"
     z_near: float = 0.05
     z_far: float = 30.0
 
@@ -67,6 +67,9 @@ class RgbdFrame:
     color: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 3), np.uint8))
     depth: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), np.float32))
 
+    def __deepcopy__(self, memo) -> "RgbdFrame":
+        return RgbdFrame(self.color.copy(), self.depth.copy())
+
 
 def renderer_params(quality: str) -> RenderEngineVtkParams:
     """VTK render settings for a quality level (see :class:`CameraSettings`)."""
@@ -74,7 +77,7 @@ def renderer_params(quality: str) -> RenderEngineVtkParams:
     params.default_clear_color = [0.78, 0.86, 0.95]
     if quality == "medium":
         params.cast_shadows = True
-        params.shadow_map_size = 512
+        params.shadow_map_size = 256
     elif quality == "high":
         params.cast_shadows = True
         params.shadow_map_size = 2048
@@ -87,10 +90,15 @@ def renderer_params(quality: str) -> RenderEngineVtkParams:
     return params
 
 
-class RgbdToNumpy(LeafSystem):
-    """Converts Drake images to an :class:`RgbdFrame` of numpy arrays (evaluated on demand)."""
+class RgbdSampler(LeafSystem):
+    """Samples the sensor's images at ``fps`` (and at initialization) into an
+    :class:`RgbdFrame` held between samples: the renderer runs only at the camera's rate.
 
-    def __init__(self, width: int, height: int):
+    Input ports: ``color_image`` (ImageRgba8U), ``depth_image_32f`` (ImageDepth32F).
+    Output port: ``rgbd`` (RgbdFrame), no direct feedthrough.
+    """
+
+    def __init__(self, width: int, height: int, fps: float):
         super().__init__()
         self._color = self.DeclareAbstractInputPort(
             "color_image", AbstractValue.Make(ImageRgba8U(width, height))
@@ -98,14 +106,17 @@ class RgbdToNumpy(LeafSystem):
         self._depth = self.DeclareAbstractInputPort(
             "depth_image_32f", AbstractValue.Make(ImageDepth32F(width, height))
         )
-        self.DeclareAbstractOutputPort(
-            "rgbd", lambda: AbstractValue.Make(RgbdFrame()), self._calc
-        )
+        blank = RgbdFrame(np.zeros((height, width, 3), np.uint8),
+                          np.zeros((height, width), np.float32))
+        self._frame = self.DeclareAbstractState(AbstractValue.Make(blank))
+        self.DeclareInitializationUnrestrictedUpdateEvent(self._sample)
+        self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / fps, 0.0, self._sample)
+        self.DeclareStateOutputPort("rgbd", self._frame)
 
-    def _calc(self, context, output) -> None:
-        color = self._color.Eval(context).data[:, :, :3].copy()
-        depth = self._depth.Eval(context).data[:, :, 0].copy()
-        output.set_value(RgbdFrame(color, depth))
+    def _sample(self, context, state) -> None:
+        frame = RgbdFrame(self._color.Eval(context).data[:, :, :3].copy(),
+                          self._depth.Eval(context).data[:, :, 0].copy())
+        state.get_mutable_abstract_state(int(self._frame)).set_value(frame)
 
 
 def add_head_camera(
@@ -114,14 +125,14 @@ def add_head_camera(
     parent_frame_id,
     X_PC: RigidTransform,
     settings: CameraSettings,
-) -> RgbdToNumpy:
-    """Adds the renderer, a discrete RgbdSensor on the head frame and the numpy converter.
+) -> RgbdSampler:
+    """Adds the renderer, an RgbdSensor on the head frame and its sampler.
 
     Args:
         parent_frame_id: SceneGraph frame id of the body carrying the camera.
         X_PC: camera pose in that body, in Drake's camera convention (+z optical axis).
     Returns:
-        the converter, whose output port ``rgbd`` carries :class:`RgbdFrame`.
+        the sampler, whose output port ``rgbd`` carries :class:`RgbdFrame`.
     """
     settings.validate()
     if not scene_graph.HasRenderer(RENDERER_NAME):
@@ -134,12 +145,11 @@ def add_head_camera(
     )
     color = ColorRenderCamera(core, False)
     depth = DepthRenderCamera(core, DepthRange(settings.z_near, settings.z_far))
-    sensor = RgbdSensor(parent_frame_id, X_PC, color, depth)
-    discrete = builder.AddNamedSystem(
-        "head_camera", RgbdSensorDiscrete(sensor, 1.0 / settings.fps, render_label_image=False)
+    sensor = builder.AddNamedSystem("head_camera", RgbdSensor(parent_frame_id, X_PC, color, depth))
+    builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
+    sampler = builder.AddNamedSystem(
+        "head_camera_sampler", RgbdSampler(settings.width, settings.height, settings.fps)
     )
-    builder.Connect(scene_graph.get_query_output_port(), discrete.query_object_input_port())
-    converter = builder.AddNamedSystem("rgbd_to_numpy", RgbdToNumpy(settings.width, settings.height))
-    builder.Connect(discrete.color_image_output_port(), converter.GetInputPort("color_image"))
-    builder.Connect(discrete.depth_image_32F_output_port(), converter.GetInputPort("depth_image_32f"))
-    return converter
+    builder.Connect(sensor.color_image_output_port(), sampler.GetInputPort("color_image"))
+    builder.Connect(sensor.depth_image_32F_output_port(), sampler.GetInputPort("depth_image_32f"))
+    return sampler

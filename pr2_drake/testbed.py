@@ -8,13 +8,14 @@ Input ports:  ``arms_command``, ``legs_command`` (JointGroupCommand), ``pick`` (
 ``release`` (bool).
 Output ports: ``joint_state`` (54), ``body_state`` (13) (layouts in :mod:`pr2_drake.ports`),
 ``pick_state`` (PickState), ``plant_state`` (full plant [q; v]), ``contact_results``,
-``rgbd`` (RgbdFrame, when the camera is on), and with a task: ``score`` (1), ``episode``
+``geometry_query`` (SceneGraph queries, to attach more sensors), ``rgbd`` (RgbdFrame, when
+the camera is on), and with a task: ``score`` (1), ``episode``
 (EpisodeStatus), ``task_feedback`` (dict), ``instruction`` (str).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Role
@@ -49,7 +50,8 @@ class TestbedConfig:
         contact_approximation: SAP variant of MultibodyPlant ("lagged" is the cheapest).
         contact_model: "point" (default; rigid terrain needs no more) or
             "hydroelastic_with_fallback" (costlier; only compliant geometry benefits).
-        camera: head RGB-D camera settings (off by default; tasks that need it turn it on).
+        camera: head RGB-D camera settings; None (default) = the task's choice (its YAML
+            ``camera`` block, e.g. on for task 6), off when the task has none.
         start: override the start pose (None: the task's seeded start, or the origin).
         arm_gains, leg_gains: default (stiffness [Nm/rad], damping [Nm s/rad]) of the
             position/velocity modes when a command carries none.
@@ -63,7 +65,7 @@ class TestbedConfig:
     time_step: float = 0.001
     contact_approximation: str = "lagged"
     contact_model: str = "point"
-    camera: CameraSettings = field(default_factory=CameraSettings)
+    camera: CameraSettings | None = None
     start: StartPose | None = None
     arm_gains: tuple[float, float] = (60.0, 3.0)
     leg_gains: tuple[float, float] = (400.0, 8.0)
@@ -85,7 +87,8 @@ class TestbedConfig:
             k, d = getattr(self, name)
             if k < 0 or d < 0 or not np.isfinite([k, d]).all():
                 raise ValueError(f"{name} must be finite and non-negative, got {(k, d)}")
-        self.camera.validate()
+        if self.camera is not None:
+            self.camera.validate()
 
 
 class Testbed(Diagram):
@@ -151,6 +154,7 @@ class Testbed(Diagram):
             )
         builder.ExportOutput(plant.get_state_output_port(), "plant_state")
         builder.ExportOutput(plant.get_contact_results_output_port(), "contact_results")
+        builder.ExportOutput(scene_graph.get_query_output_port(), "geometry_query")
         builder.BuildInto(self)
         self.set_name("testbed")
 
@@ -229,14 +233,14 @@ class Testbed(Diagram):
     def _add_camera(self, builder: DiagramBuilder) -> None:
         frame = self.plant.GetFrameByName("head_camera", self.robot)
         body_frame_id = self.plant.GetBodyFrameIdOrThrow(frame.body().index())
-        converter = add_head_camera(
+        sampler = add_head_camera(
             builder,
             self.scene_graph,
             body_frame_id,
             frame.GetFixedPoseInBodyFrame(),
             self.camera,
         )
-        builder.ExportOutput(converter.GetOutputPort("rgbd"), "rgbd")
+        builder.ExportOutput(sampler.GetOutputPort("rgbd"), "rgbd")
 
     def _add_referee(self, builder: DiagramBuilder) -> None:
         referee = builder.AddNamedSystem(
@@ -276,10 +280,12 @@ class Testbed(Diagram):
         return self.camera.enabled
 
 
-def _resolve_camera(camera: CameraSettings, task) -> CameraSettings:
-    """The user's camera settings; left at the defaults, the task YAML's ``camera`` block wins."""
-    if task is None or not task.spec.camera or camera != CameraSettings():
+def _resolve_camera(camera: CameraSettings | None, task) -> CameraSettings:
+    """The user's camera settings if given, else the task YAML's ``camera`` block, else off."""
+    if camera is not None:
         return camera
+    if task is None or not task.spec.camera:
+        return CameraSettings()
     try:
         settings = CameraSettings(**task.spec.camera)
     except TypeError as e:

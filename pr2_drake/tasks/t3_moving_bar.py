@@ -58,7 +58,6 @@ from pydrake.systems.framework import BasicVector, LeafSystem
 from pr2_drake.scene import GROUND_FRICTION, Scene, add_flat_ground
 from pr2_drake.tasks.base import EpisodeStatus, Referee, ScoreEvent, TaskDefinition, TaskSpec
 from pr2_drake.tasks.regions import (
-    FOOT_BODY_NAMES,
     SOLE_FRAME_NAMES,
     Rect,
     add_line_marker,
@@ -96,7 +95,7 @@ class BarProfile:
 
 
 class BarMotion(LeafSystem):
-    """Output port ``desired_state``: [q_d, v_d] of the bar's prismatic joint at the current time."""
+    """Output port ``desired_state``: [q_d, v_d] of the bar's prismatic joint at time t."""
 
     def __init__(self, profile: BarProfile):
         super().__init__()
@@ -160,7 +159,6 @@ class MovingBarReferee(Referee):
         self.robot_bodies = frozenset(plant.GetBodyIndices(robot))
         self.bar_bodies = frozenset([self.bar.index()])
         self.ground_bodies = frozenset([plant.world_body().index()])
-        self.feet = frozenset(plant.GetBodyByName(n, robot).index() for n in FOOT_BODY_NAMES)
         self.soles = [plant.GetFrameByName(n, robot) for n in SOLE_FRAME_NAMES]
         self.period = 0.01
 
