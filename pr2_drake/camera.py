@@ -11,6 +11,7 @@ from pydrake.geometry import (
     ColorRenderCamera,
     DepthRange,
     DepthRenderCamera,
+    LightParameter,
     MakeRenderEngineVtk,
     RenderCameraCore,
     RenderEngineVtkParams,
@@ -75,6 +76,13 @@ def renderer_params(quality: str) -> RenderEngineVtkParams:
     """VTK render settings for a quality level (see :class:`CameraSettings`)."""
     params = RenderEngineVtkParams()
     params.default_clear_color = [0.78, 0.86, 0.95]
+    # A sun and four fill lights fixed in the world, so that walls facing any way are lit (the
+    # default headlight would cast the robot's own head shadow over its view).
+    params.lights = [
+        LightParameter(type="directional", frame="world", direction=d, intensity=i)
+        for d, i in (([0.3, 0.2, -1.0], 0.8), ([1, 1, -0.5], 0.3), ([-1, 1, -0.5], 0.3),
+                     ([1, -1, -0.5], 0.3), ([-1, -1, -0.5], 0.3))
+    ]
     if quality == "medium":
         params.cast_shadows = True
         params.shadow_map_size = 256

@@ -102,6 +102,7 @@ class GraspSystem(LeafSystem):
         self._graspables = list(graspables)
         self._gains = gains or GraspGains()
         self._hands = {k: plant.GetBodyByName(v, robot) for k, v in HAND_BODIES.items()}
+        self._weld_gains = [_stable_gains(self._gains, plant, g) for g in self._graspables]
         self._pick = self.DeclareAbstractInputPort("pick", AbstractValue.Make(""))
         self._release = self.DeclareAbstractInputPort("release", AbstractValue.Make(False))
         self._state = self.DeclareVectorInputPort(
@@ -154,11 +155,18 @@ class GraspSystem(LeafSystem):
                     best = (d, i, X_WO)
         if best is not None:
             _, i, X_WO = best
-            # A is the material point of the object under the hand centre at pick time.
-            p_OA = X_WO.inverse().multiply(p_WH)
             R_HO = (X_WH.rotation().inverse() @ X_WO.rotation()).matrix()
+            if self._graspables[i].mode == "weld":
+                # A is the object's centre of mass, held where it was relative to the hand
+                # (p_HA), so the spring exerts no lever torque on a light object.
+                p_OA = self._plant.get_body(self._graspables[i].body).default_com()
+                p_HA = X_WH.inverse().multiply(X_WO.multiply(p_OA))
+            else:
+                # A is the material point of the object under the hand centre at pick time.
+                p_OA = X_WO.inverse().multiply(p_WH)
+                p_HA = np.zeros(3)
             state.get_mutable_abstract_state(0).set_value(
-                _Attachment(pick, i, p_OA, R_HO, context.get_time())
+                _Attachment(pick, i, p_OA, R_HO, context.get_time(), {"p_HA": p_HA})
             )
 
     # -- outputs ------------------------------------------------------------------------------
@@ -185,11 +193,13 @@ class GraspSystem(LeafSystem):
         p_WA = X_WO.multiply(a.p_OA)
         p_OA_W = p_WA - X_WO.translation()
         v_WA = V_WO.translational() + np.cross(V_WO.rotational(), p_OA_W)
-        gains = self._gains
-        # Force on the object at A, pulling A towards the hand centre H.
-        f_A = gains.stiffness * (X_WH.translation() - p_WA) + gains.damping * (
-            V_WH.translational() - v_WA
-        )
+        gains = self._gains if g.mode != "weld" else self._weld_gains[a.graspable]
+        # Force on the object at A, pulling A towards its held place Q on the hand (the hand
+        # centre H in ball mode).
+        p_HA = a.extra.get("p_HA", np.zeros(3))
+        p_WQ = X_WH.multiply(p_HA)
+        v_WQ = V_WH.translational() + np.cross(V_WH.rotational(), p_WQ - X_WH.translation())
+        f_A = gains.stiffness * (p_WQ - p_WA) + gains.damping * (v_WQ - v_WA)
         tau = np.zeros(3)
         if g.mode == "weld":
             R_WO_desired = X_WH.rotation().matrix() @ a.R_HO
@@ -204,9 +214,31 @@ class GraspSystem(LeafSystem):
         on_object.F_Bq_W = SpatialForce(tau, f_A)
         on_hand = ExternallyAppliedSpatialForce()
         on_hand.body_index = hand.index()
-        on_hand.p_BoBq_B = np.zeros(3)
+        on_hand.p_BoBq_B = p_HA
         on_hand.F_Bq_W = SpatialForce(-tau, -f_A)
         output.set_value([on_object, on_hand])
+
+
+def _stable_gains(gains: GraspGains, plant: MultibodyPlant, g: Graspable) -> GraspGains:
+    """``gains`` capped for a welded object so the explicit spring-damper stays stable at the
+    plant's time step: stiffness <= m (0.3/dt)^2, damping <= 0.5 m/dt, and likewise with the
+    smallest central moment of inertia for the rotational terms."""
+    dt = plant.time_step()
+    body = plant.get_body(g.body)
+    if dt <= 0 or g.mode != "weld":
+        return gains
+    m = body.default_mass()
+    com = body.default_com()
+    I_Bo = body.default_rotational_inertia().CopyToFullMatrix3()
+    I_com = I_Bo - m * (np.dot(com, com) * np.eye(3) - np.outer(com, com))
+    i_min = max(float(np.linalg.eigvalsh(I_com).min()), 1e-9)
+    w = 0.3 / dt
+    return GraspGains(
+        stiffness=min(gains.stiffness, m * w * w),
+        damping=min(gains.damping, 0.5 * m / dt),
+        rot_stiffness=min(gains.rot_stiffness, i_min * w * w),
+        rot_damping=min(gains.rot_damping, 0.5 * i_min / dt),
+    )
 
 
 class _NoAttachment:

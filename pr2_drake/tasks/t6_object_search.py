@@ -43,7 +43,7 @@ from pr2_drake.paths import resolve_user_path
 from pr2_drake.scene import Scene, StartPose
 from pr2_drake.tasks.base import EpisodeStatus, Referee, TaskDefinition
 from pr2_drake.tasks.house import Table, add_house
-from pr2_drake.tasks.regions import held_for, region_from_yaml
+from pr2_drake.tasks.regions import held_for
 
 SPAWN_GAP = 0.002  # [m] objects start this far above their table top and settle onto it
 

@@ -1,0 +1,1 @@
+"""Asset generation and mesh/model writers (OBJ + MTL, SDFormat)."""
