@@ -111,6 +111,8 @@ class Env:
         ctx, ports, tb = self._ctx, self._ports, self.testbed
         obs: dict[str, Any] = {}
         obs.update(tb.scene.priors)
+        if "goal_center" in obs:  # the original platform's key for the goal prior
+            obs["goal"] = obs["goal_center"]
         obs["agent"] = joint_and_body_obs(
             ports["joint_state"].Eval(ctx), ports["body_state"].Eval(ctx)
         )

@@ -13,6 +13,7 @@ Observation (``obs``)::
     obs["start_pos"], obs["start_orient"]    the episode's start pose (w, x, y, z)
     obs["language_instruction"]  the task sentence (task 6), "" otherwise
     obs["goal"], ...             the task's priors and feedback, under their own keys
+                                 (``goal`` repeats ``goal_center`` where a task has one)
 
 Action::
 

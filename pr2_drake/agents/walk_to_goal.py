@@ -1,0 +1,124 @@
+"""Reference agents for the walking tasks: steer the walking controller to the goal prior.
+
+:class:`GoalVelocityPlanner` turns the base pose and a goal into a body velocity command: it
+points the body at the goal, walks forward, slows down near it and stops inside it.
+:class:`WalkToGoalAgent` is a Diagram of planner + :class:`WalkingController` + arm posture with
+the testbed's port names, so ``pr2-drake run --task 1 --agent
+pr2_drake.agents.walk_to_goal:WalkToGoalAgent`` wires it by name. It uses only the public
+observation (``body_state``, ``joint_state``) and the task's ``goal_center`` prior.
+"""
+
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from pydrake.common.yaml import yaml_load_typed
+from pydrake.systems.framework import BasicVector, Diagram, DiagramBuilder, LeafSystem
+
+from pr2_drake.paths import resolve_user_path
+from pr2_drake.ports import BODY_STATE_SIZE, P_WB, QUAT_WB
+
+
+@dataclass
+class GoalPlannerParams:
+    """Speeds in m/s and rad/s, distances in m, angles in rad."""
+
+    forward_speed: float = 0.25
+    max_yaw_rate: float = 0.4
+    yaw_gain: float = 1.2
+    slow_radius: float = 0.5
+    stop_radius: float = 0.12
+    turn_in_place_angle: float = 0.6
+    lateral_gain: float = 0.0
+    max_lateral_speed: float = 0.08
+
+    @staticmethod
+    def load(path: str) -> "GoalPlannerParams":
+        return yaml_load_typed(schema=GoalPlannerParams,
+                               filename=str(resolve_user_path(path, "goal planner parameters")))
+
+
+def yaw_from_quaternion(q_wxyz: np.ndarray) -> float:
+    """Heading [rad] of a body whose orientation is the unit quaternion (w, x, y, z)."""
+    w, x, y, z = q_wxyz
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def goal_velocity(p_WB: np.ndarray, yaw: float, p_goal: np.ndarray,
+                  params: GoalPlannerParams) -> np.ndarray:
+    """[vx, vy, yaw_rate] in the heading frame that takes the base at p_WB towards p_goal."""
+    d = np.asarray(p_goal[:2], float) - np.asarray(p_WB[:2], float)
+    dist = float(np.hypot(*d))
+    if dist < params.stop_radius:
+        return np.zeros(3)
+    error = math.atan2(d[1], d[0]) - yaw
+    error = math.atan2(math.sin(error), math.cos(error))
+    yaw_rate = float(np.clip(params.yaw_gain * error, -params.max_yaw_rate, params.max_yaw_rate))
+    if abs(error) > params.turn_in_place_angle:
+        return np.array([0.0, 0.0, yaw_rate])
+    speed = params.forward_speed * min(1.0, dist / params.slow_radius)
+    vx = speed * math.cos(error)
+    lateral = dist * math.sin(error)
+    vy = float(np.clip(params.lateral_gain * lateral, -params.max_lateral_speed,
+                       params.max_lateral_speed))
+    return np.array([max(0.0, vx), vy, yaw_rate])
+
+
+class GoalVelocityPlanner(LeafSystem):
+    """``body_state`` in, ``velocity_command`` (vx, vy, yaw rate) out, towards ``goal`` (x, y)."""
+
+    def __init__(self, goal, params: GoalPlannerParams | None = None):
+        super().__init__()
+        self.goal = np.asarray(goal, dtype=float)[:2]
+        if self.goal.shape != (2,) or not np.all(np.isfinite(self.goal)):
+            raise ValueError(f"GoalVelocityPlanner: goal must be finite (x, y), got {goal}")
+        self.params = params or GoalPlannerParams()
+        self._body = self.DeclareVectorInputPort("body_state", BODY_STATE_SIZE)
+        self.DeclareVectorOutputPort("velocity_command", 3, self._calc)
+
+    def _calc(self, context, output: BasicVector) -> None:
+        x = self._body.Eval(context)
+        output.SetFromVector(
+            goal_velocity(x[P_WB], yaw_from_quaternion(x[QUAT_WB]), self.goal, self.params)
+        )
+
+
+class WalkToGoalAgent(Diagram):
+    """Planner + walking controller + arm posture, with the testbed's port names.
+
+    Input ports: ``joint_state``, ``body_state``. Output ports: ``legs_command``,
+    ``arms_command``, ``velocity_command`` (for plotting).
+
+    Args:
+        priors: the task's priors; needs ``goal_center`` (x, y[, z]) in world [m].
+        params: goal-planner YAML (default controllers/goal_planner.yaml).
+        walking_params: walking-controller YAML (default controllers/walking.yaml).
+    """
+
+    def __init__(self, priors: dict[str, Any], params: str | None = None,
+                 walking_params: str | None = None):
+        super().__init__()
+        from pr2_drake.controllers.posture import ArmPosture
+        from pr2_drake.controllers.walking import WalkingController
+
+        goal = priors.get("goal_center", priors.get("goal"))
+        if goal is None:
+            raise ValueError(
+                f"WalkToGoalAgent needs a 'goal_center' prior; the task gives {sorted(priors)}"
+            )
+        planner_params = GoalPlannerParams.load(params or "controllers/goal_planner.yaml")
+        builder = DiagramBuilder()
+        planner = builder.AddNamedSystem("planner", GoalVelocityPlanner(goal, planner_params))
+        walker = builder.AddNamedSystem("walker", WalkingController(walking_params))
+        arms = builder.AddNamedSystem("arm_posture", ArmPosture())
+        builder.ExportInput(walker.GetInputPort("joint_state"), "joint_state")
+        body = builder.ExportInput(walker.GetInputPort("body_state"), "body_state")
+        builder.ConnectInput(body, planner.GetInputPort("body_state"))
+        builder.Connect(planner.GetOutputPort("velocity_command"),
+                        walker.GetInputPort("velocity_command"))
+        builder.ExportOutput(walker.GetOutputPort("legs_command"), "legs_command")
+        builder.ExportOutput(arms.GetOutputPort("arms_command"), "arms_command")
+        builder.ExportOutput(planner.GetOutputPort("velocity_command"), "velocity_command")
+        builder.BuildInto(self)
