@@ -47,3 +47,23 @@ def test_bad_arguments_give_clear_errors(args, message):
     assert out.returncode == 2
     assert message in out.stderr
     assert "Traceback" not in out.stderr
+
+
+def test_eval_summarises_seeds_in_parallel(tmp_path):
+    out_file = tmp_path / "results.json"
+    out = _cli("eval", "--task", "4", "--seeds", "0:2", "--seconds", "0.3", "--jobs", "2",
+               "--out", str(out_file))
+    assert out.returncode == 0, out.stderr
+    results = json.loads(out_file.read_text())
+    assert [e["seed"] for e in results["episodes"]] == [0, 1]
+    assert results["summary"]["episodes"] == 2
+    assert results["summary"]["terminations"] == {"timeout": 2}
+    assert "success rate" in out.stdout and "mean score" in out.stdout
+
+
+def test_run_task_prints_the_rubric():
+    out = _cli("run", "--task", "5", "--seconds", "0.2", "--quiet")
+    assert out.returncode == 0, out.stderr
+    for item in ("onto_step", "over_steps", "touch_button", "touch_button_arm"):
+        assert item in out.stdout
+    assert "score 0 / 20" in out.stdout
