@@ -1,0 +1,1 @@
+"""Benchmarks of the built-in controllers (not tests): ``pr2-drake bench <name>``."""

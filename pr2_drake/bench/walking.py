@@ -1,0 +1,306 @@
+"""Walking controller benchmark: tracking, pushes, standing, and the real-time factor.
+
+    pr2-drake bench walking [--quick] [--repeats 3] [--no-profile] [--push-force 40] [--push-time 0.2]
+    python -m pr2_drake.bench.walking [--quick]
+
+Runs the testbed (flat ground, discrete SAP 1 ms) in closed loop with the WalkingController
+and the ArmPosture block, and prints one table row per scenario: commanded and achieved mean
+velocity, whether the robot fell, and the wall-clock real-time factor. Then the real-time factor
+of 0.3 m/s walking (median of ``--repeats`` runs) and the split of wall time between the plant
+(MultibodyPlant step) and the controller (cProfile).
+
+:class:`WalkingSim` (the closed loop with a settable command and torso pushes) is also used by
+tests/test_walking.py.
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import pstats
+import statistics
+import sys
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.math import RollPitchYaw
+from pydrake.multibody.math import SpatialForce
+from pydrake.multibody.plant import ExternallyAppliedSpatialForce
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+
+from pr2_drake.controllers.posture import ArmPosture
+from pr2_drake.controllers.walking import WalkingController
+from pr2_drake.controllers.walking_params import WalkingParams
+from pr2_drake.robot.model import BASE_BODY
+
+FALL_HEIGHT = 0.35  # [m] base_link below this above the ground = fallen
+FALL_TILT = 0.8  # [rad] pelvis roll or pitch beyond this = fallen
+PUSH_POINT_B = np.array([0.0, 0.0, 0.20])  # [m] torso centre in base_link
+
+
+class WalkingSim:
+    """Testbed + WalkingController + ArmPosture, with a settable command and pushes."""
+
+    def __init__(self, params: WalkingParams | None = None, meshcat=None):
+        from pr2_drake.testbed import Testbed, TestbedConfig
+
+        builder = DiagramBuilder()
+        self.testbed = builder.AddSystem(Testbed(TestbedConfig(), meshcat))
+        self.walker = builder.AddSystem(WalkingController(params))
+        self.arms = builder.AddSystem(ArmPosture(
+            stiffness=self.walker.params.arm_stiffness, damping=self.walker.params.arm_damping))
+        tb = self.testbed
+        builder.Connect(tb.GetOutputPort("joint_state"), self.walker.GetInputPort("joint_state"))
+        builder.Connect(tb.GetOutputPort("body_state"), self.walker.GetInputPort("body_state"))
+        builder.Connect(self.walker.GetOutputPort("legs_command"), tb.GetInputPort("legs_command"))
+        builder.Connect(self.arms.GetOutputPort("arms_command"), tb.GetInputPort("arms_command"))
+        self.diagram = builder.Build()
+        self.simulator = Simulator(self.diagram)
+        self.context = self.simulator.get_mutable_context()
+        self.plant = tb.plant
+        self.plant_context = self.plant.GetMyMutableContextFromRoot(self.context)
+        self.walker_context = self.walker.GetMyMutableContextFromRoot(self.context)
+        self.tb_context = tb.GetMyContextFromRoot(self.context)
+        self.base = self.plant.GetBodyByName(BASE_BODY, tb.robot)
+        self._force_port = self.plant.get_applied_spatial_force_input_port()
+        self.set_command(0.0, 0.0, 0.0)
+        self.push(None)
+        self.simulator.Initialize()
+
+    def set_command(self, vx: float, vy: float, yaw_rate: float) -> None:
+        self.walker.GetInputPort("velocity_command").FixValue(
+            self.walker_context, np.array([vx, vy, yaw_rate], dtype=float))
+
+    def push(self, force_W: np.ndarray | None) -> None:
+        """Apply a constant force [N] (in W) at the torso centre, or None to stop."""
+        forces = []
+        if force_W is not None:
+            f = ExternallyAppliedSpatialForce()
+            f.body_index = self.base.index()
+            f.p_BoBq_B = PUSH_POINT_B
+            f.F_Bq_W = SpatialForce(np.zeros(3), np.asarray(force_W, dtype=float))
+            forces.append(f)
+        self._force_port.FixValue(self.plant_context, forces)
+
+    def advance(self, t: float) -> None:
+        self.simulator.AdvanceTo(t)
+
+    @property
+    def time(self) -> float:
+        return self.context.get_time()
+
+    def base_pose(self):
+        """(p_WB (3), roll, pitch, yaw) of base_link."""
+        X = self.plant.EvalBodyPoseInWorld(self.plant_context, self.base)
+        rpy = RollPitchYaw(X.rotation())
+        return X.translation().copy(), rpy.roll_angle(), rpy.pitch_angle(), rpy.yaw_angle()
+
+    def fallen(self) -> bool:
+        p, roll, pitch, _ = self.base_pose()
+        return bool(p[2] < FALL_HEIGHT or abs(roll) > FALL_TILT or abs(pitch) > FALL_TILT)
+
+    def status(self) -> np.ndarray:
+        return self.walker.GetOutputPort("status").Eval(self.walker_context)
+
+    def run(self, duration: float, check_every: float = 0.1) -> bool:
+        """Advance by ``duration`` s; stop early and return False if the robot falls."""
+        end = self.time + duration
+        while self.time < end - 1e-9:
+            self.advance(min(end, self.time + check_every))
+            if self.fallen():
+                return False
+        return True
+
+
+@dataclass
+class Row:
+    name: str
+    command: tuple[float, float, float]
+    duration: float
+    achieved: tuple[float, float, float]  # mean vx, vy (heading frame) [m/s], yaw rate [rad/s]
+    fell: bool
+    rtf: float
+    note: str = ""
+
+
+def _track(sim: WalkingSim, duration: float, step: float = 0.1):
+    """Run for ``duration`` s; return (ok, mean velocity in the heading frame of the start
+    (vx, vy) [m/s], mean yaw rate [rad/s], from the yaw unwrapped every ``step`` s)."""
+    p0, _, _, yaw0 = sim.base_pose()
+    t0 = sim.time
+    yaw_prev, turned, ok = yaw0, 0.0, True
+    while ok and sim.time < t0 + duration - 1e-9:
+        ok = sim.run(min(step, t0 + duration - sim.time), check_every=step)
+        _, _, _, yaw = sim.base_pose()
+        turned += (yaw - yaw_prev + np.pi) % (2 * np.pi) - np.pi
+        yaw_prev = yaw
+    p1, *_ = sim.base_pose()
+    T = max(sim.time - t0, 1e-6)
+    d = p1[:2] - p0[:2]
+    # Mean direction of travel in the heading frame: rotate by the mean yaw.
+    yaw_mid = yaw0 + 0.5 * turned
+    c, s = np.cos(yaw_mid), np.sin(yaw_mid)
+    return ok, (c * d[0] + s * d[1]) / T, (-s * d[0] + c * d[1]) / T, turned / T
+
+
+def scenario_walk(name, cmd, duration, settle=1.0, measure_from=2.0) -> Row:
+    """Walk with a constant command; velocity averaged after ``measure_from`` s of walking."""
+    sim = WalkingSim()
+    sim.run(settle)
+    sim.set_command(*cmd)
+    wall = time.perf_counter()
+    t0 = sim.time
+    ok = sim.run(min(measure_from, duration))
+    vx = vy = wz = np.nan
+    if ok:
+        ok, vx, vy, wz = _track(sim, duration - (sim.time - t0))
+    rtf = (sim.time - t0) / (time.perf_counter() - wall)
+    achieved = (vx, vy, wz)
+    note = ""
+    if ok:
+        # Stop and check it comes to rest standing.
+        sim.set_command(0.0, 0.0, 0.0)
+        ok = sim.run(3.0)
+        phase = int(sim.status()[3])
+        note = ("fell while stopping" if not ok else
+                "stopped, standing" if phase == 0 else f"still stepping (phase {phase})")
+    return Row(name, cmd, duration, achieved, not ok, rtf, note)
+
+
+def scenario_stand(duration) -> Row:
+    sim = WalkingSim()
+    p0, *_ = sim.base_pose()
+    wall = time.perf_counter()
+    ok = sim.run(duration, check_every=1.0)
+    rtf = duration / (time.perf_counter() - wall)
+    p1, *_ = sim.base_pose()
+    drift = float(np.linalg.norm(p1 - p0))
+    return Row("stand", (0.0, 0.0, 0.0), duration, (0.0, 0.0, 0.0), not ok, rtf,
+               f"base drift {drift * 100:.1f} cm")
+
+
+def scenario_push(direction: str, walking: bool, force: float = 40.0,
+                  push_time: float = 0.2, walk_before: float = 4.0) -> Row:
+    """Push the torso for ``push_time`` s with ``force`` N; while walking at 0.3 m/s, the push
+    comes after ``walk_before`` s of walking (a settled gait)."""
+    sim = WalkingSim()
+    sim.run(1.0)
+    cmd = (0.3, 0.0, 0.0) if walking else (0.0, 0.0, 0.0)
+    sim.set_command(*cmd)
+    ok = sim.run(walk_before if walking else 2.0)
+    _, _, _, yaw = sim.base_pose()
+    local = {"front": (-1.0, 0.0), "back": (1.0, 0.0), "side": (0.0, 1.0)}[direction]
+    c, s = np.cos(yaw), np.sin(yaw)
+    f_W = force * np.array([c * local[0] - s * local[1], s * local[0] + c * local[1], 0.0])
+    wall = time.perf_counter()
+    t0 = sim.time
+    if ok:
+        sim.push(f_W)
+        ok = sim.run(push_time, check_every=push_time)
+        sim.push(None)
+    if ok:
+        ok = sim.run(3.0)
+    rtf = (sim.time - t0) / (time.perf_counter() - wall)
+    mode = "walking" if walking else "standing"
+    return Row(f"push {direction} {force:.0f}N {push_time}s {mode}", cmd, 3.0 + push_time,
+               (np.nan,) * 3, not ok, rtf)
+
+
+def measure_rtf(seconds: float, repeats: int) -> list[float]:
+    rates = []
+    for _ in range(repeats):
+        sim = WalkingSim()
+        sim.set_command(0.3, 0.0, 0.0)
+        wall = time.perf_counter()
+        sim.advance(seconds)
+        rates.append(seconds / (time.perf_counter() - wall))
+    return rates
+
+
+def profile_split(seconds: float) -> dict[str, float]:
+    """Fractions of wall time in the plant step, the walking controller and the rest."""
+    sim = WalkingSim()
+    sim.set_command(0.3, 0.0, 0.0)
+    prof = cProfile.Profile()
+    prof.enable()
+    sim.advance(seconds)
+    prof.disable()
+    stats = pstats.Stats(prof)
+    total = sum(v[3] for v in stats.stats.values() if v[3] > 0) or 1.0
+    top = max(v[3] for v in stats.stats.values())  # cumulative of the outermost call
+    walker = 0.0
+    adapter = 0.0
+    qp = 0.0
+    for (filename, _, func), v in stats.stats.items():
+        if filename.endswith("controllers/walking.py") and func == "_update":
+            walker += v[3]
+        if filename.endswith("actuation.py") and func.startswith("_calc"):
+            adapter += v[3]
+        if filename.endswith("wbqp.py") and func == "solve":
+            qp += v[3]
+    del total
+    rest = top - walker - adapter
+    return {"total_s": top, "controller": walker / top, "qp_solve": qp / top,
+            "actuation_adapter": adapter / top, "plant_and_framework": rest / top}
+
+
+def _fmt(x: float) -> str:
+    return "   -  " if not np.isfinite(x) else f"{x:+.3f}"
+
+
+def print_table(rows: list[Row]) -> None:
+    print(f"{'scenario':38s} {'cmd vx,vy,wz':18s} {'got vx':>7s} {'got vy':>7s} {'got wz':>7s}"
+          f" {'fell':>5s} {'RTF':>5s}  note")
+    for r in rows:
+        cmd = ",".join(f"{c:g}" for c in r.command)
+        print(f"{r.name:38s} {cmd:18s} {_fmt(r.achieved[0]):>7s} {_fmt(r.achieved[1]):>7s}"
+              f" {_fmt(r.achieved[2]):>7s} {'YES' if r.fell else 'no':>5s} {r.rtf:5.2f}  {r.note}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="pr2-drake bench walking", description=__doc__)
+    parser.add_argument("--quick", action="store_true", help="short smoke run (~1 min)")
+    parser.add_argument("--repeats", type=int, default=3, help="runs for the median RTF")
+    parser.add_argument("--no-profile", action="store_true", help="skip the cProfile split")
+    parser.add_argument("--push-force", type=float, default=40.0, help="torso push [N]")
+    parser.add_argument("--push-time", type=float, default=0.2, help="push duration [s]")
+    args = parser.parse_args(argv)
+    q = args.quick
+    rows = []
+    walk_t = 8.0 if q else 20.0
+    rows.append(scenario_walk("forward 0.3 m/s", (0.3, 0.0, 0.0), walk_t))
+    if not q:
+        rows.append(scenario_walk("backward -0.15 m/s", (-0.15, 0.0, 0.0), 10.0))
+        rows.append(scenario_walk("sideways 0.1 m/s", (0.0, 0.1, 0.0), 10.0))
+        rows.append(scenario_walk("turn 0.4 rad/s", (0.0, 0.0, 0.4), 10.0))
+    rows.append(scenario_stand(5.0 if q else 60.0))
+    pushes = [("front", False), ("side", True)] if q else [
+        (d, w) for w in (False, True) for d in ("front", "back", "side")]
+    for d, w in pushes:
+        rows.append(scenario_push(d, w, args.push_force, args.push_time))
+    print_table(rows)
+    fwd = rows[0]
+    speed_ok = (not fwd.fell) and abs(fwd.achieved[0] - 0.3) <= 0.05
+    print(f"\nforward 0.3 m/s: mean speed {fwd.achieved[0]:.3f} m/s "
+          f"({'within' if speed_ok else 'NOT within'} 0.05 m/s), fell: {fwd.fell}")
+    rtf_seconds = 3.0 if q else 10.0
+    repeats = 1 if q else args.repeats
+    rates = measure_rtf(rtf_seconds, repeats)
+    print(f"real-time factor, 0.3 m/s walking, {rtf_seconds:g} s sim, {repeats} run(s): "
+          f"median {statistics.median(rates):.2f} (runs: {', '.join(f'{r:.2f}' for r in rates)})"
+          f"; target >= 1.0")
+    if not args.no_profile:
+        split = profile_split(2.0 if q else 5.0)
+        print("time split under cProfile (adds overhead): "
+              f"controller {split['controller']:.0%} (of which QP solve {split['qp_solve']:.0%}),"
+              f" actuation adapter {split['actuation_adapter']:.0%},"
+              f" plant + framework {split['plant_and_framework']:.0%}")
+    failures = sum(r.fell for r in rows)
+    print(f"falls: {failures} of {len(rows)} scenarios")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

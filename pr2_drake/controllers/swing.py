@@ -1,0 +1,105 @@
+"""Swing-sole trajectory from lift-off to the next footstep.
+
+The swing follows a phase tau in [0, 1] (0 at lift-off, 1 at the planned landing). Horizontal
+position and yaw follow a quintic blend of tau (zero velocity and acceleration at both ends);
+the height adds a bump ``64 h tau^3 (1 - tau)^3`` (apex h at mid swing, smooth ends). The
+target may move during the swing (foot placement feedback) and the landing may be brought
+forward (step timing): the phase rate then changes so that tau reaches 1 at the new landing
+time. After the planned landing the sole keeps descending slowly until contact is detected.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pr2_drake.controllers.footsteps import wrap
+
+
+def _quintic(tau: float):
+    """s, ds/dtau, d2s/dtau2 of 10 tau^3 - 15 tau^4 + 6 tau^5 on [0, 1]."""
+    t = min(max(tau, 0.0), 1.0)
+    s = t**3 * (10 - 15 * t + 6 * t * t)
+    ds = 30 * t * t * (1 - t) ** 2
+    dds = 60 * t * (1 - t) * (1 - 2 * t)
+    return s, ds, dds
+
+
+class SwingTrajectory:
+    """Desired sole position (W) and yaw during one swing.
+
+    Args:
+        t0: lift-off time [s].
+        duration: planned single-support time [s].
+        start, target: sole poses (x, y, z, yaw) at lift-off and landing.
+        height: apex above the higher of the two ends [m].
+        land_fraction: part of the single support after which the sole is at the target.
+    """
+
+    DESCENT_SPEED = 0.15  # [m/s] after the planned landing, until contact
+    MAX_DESCENT = 0.03  # [m] below the target height
+
+    def __init__(self, t0: float, duration: float, start: np.ndarray, target: np.ndarray,
+                 height: float, land_fraction: float):
+        self.t0 = t0
+        self.duration = duration
+        self.t_land = land_fraction * duration  # landing time after t0 [s]
+        self.start = np.array(start, dtype=float)
+        self.target = np.array(target, dtype=float)
+        self.height = height
+        self._tau = 0.0
+        self._rate = 1.0 / self.t_land
+        self._t = t0
+
+    def phase(self, t: float) -> float:
+        """Fraction of the planned single support elapsed (can exceed 1 when landing late)."""
+        return (t - self.t0) / self.duration
+
+    @property
+    def progress(self) -> float:
+        """Swing phase tau in [0, 1] at the last evaluation (1 = planned landing)."""
+        return self._tau
+
+    @property
+    def landing_time(self) -> float:
+        """Absolute planned landing time [s]."""
+        return self.t0 + self.t_land
+
+    def retime(self, t: float, landing_time: float) -> None:
+        """Bring the landing forward to ``landing_time`` (absolute) from time t."""
+        self._advance(t)
+        remaining = landing_time - t
+        if remaining <= 1e-3 or self._tau >= 1.0:
+            return
+        self._rate = (1.0 - self._tau) / remaining
+        self.t_land = landing_time - self.t0
+
+    def _advance(self, t: float) -> None:
+        dt = t - self._t
+        if dt > 0:
+            self._tau = min(self._tau + self._rate * dt, 1.0)
+            self._t = t
+
+    def evaluate(self, t: float):
+        """p, v, a (3 each, W) and yaw, yaw rate of the desired sole at time t."""
+        self._advance(t)
+        tau, r = self._tau, self._rate
+        s, ds, dds = _quintic(tau)
+        d = self.target[:3] - self.start[:3]
+        p = self.start[:3] + s * d
+        v = ds * r * d
+        a = dds * r * r * d
+        dyaw = wrap(self.target[3] - self.start[3])
+        yaw = self.start[3] + s * dyaw
+        yawd = ds * r * dyaw
+        # Height bump on top of the straight blend.
+        top = max(self.start[2], self.target[2]) - self.start[2] - s * d[2]
+        bump = self.height + max(top, 0.0)
+        p[2] += bump * 64 * tau**3 * (1 - tau) ** 3
+        v[2] += bump * 64 * 3 * tau**2 * (1 - tau) ** 2 * (1 - 2 * tau) * r
+        a[2] += bump * 64 * 6 * tau * (1 - tau) * (1 - 5 * tau + 5 * tau * tau) * r * r
+        late = (t - self.t0) - self.t_land
+        if tau >= 1.0 and late > 0:
+            p[2] = self.target[2] - min(self.DESCENT_SPEED * late, self.MAX_DESCENT)
+            v[2] = -self.DESCENT_SPEED if self.DESCENT_SPEED * late < self.MAX_DESCENT else 0.0
+            a[2] = 0.0
+        return p, v, a, yaw, yawd

@@ -1,0 +1,173 @@
+"""WalkingController: velocity command -> leg torques, as a Drake LeafSystem and in process.
+
+Input ports:
+    ``velocity_command`` (3): vx [m/s], vy [m/s], yaw_rate [rad/s] in the robot's heading frame.
+        Unconnected = stand still. NaN/inf or a wrong size raise ValueError naming the port;
+        values beyond ``limits`` in controllers/walking.yaml are clipped to them.
+    ``joint_state`` (54), ``body_state`` (13): the testbed's observations (pr2_drake.ports).
+Output ports:
+    ``legs_command``: :class:`pr2_drake.ports.JointGroupCommand`, mode "effort" [Nm].
+    ``status`` (6): see :data:`pr2_drake.controllers.walking_core.STATUS_FIELDS`
+        (qp_ok, consecutive QP failures, QP iterations, gait phase, stance side, falling).
+
+The control law runs every ``control_period`` seconds (a periodic discrete update) and the torques
+are held in between. The gait and planner memory live in the Python object
+(:class:`WalkingCore`), not in the Context: one controller drives one simulation at a time;
+a simulation that restarts at an earlier time resets it.
+
+In process, without a Diagram (the PR2 platform's walking-server call)::
+
+    walker = WalkingController()
+    legs = walker.command(obs, vx, vy, yaw_rate)   # {"ctrl_mode": "effort", ...}
+
+Both paths call the same :meth:`WalkingCore.update`.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import BasicVector, LeafSystem
+
+from pr2_drake.controllers.walking_core import (
+    COMMAND_PORT,
+    STATUS_FIELDS,
+    WalkingCore,
+    check_command,
+)
+from pr2_drake.controllers.walking_params import WalkingParams
+from pr2_drake.ports import (
+    BODY_STATE_SIZE,
+    EFFORT_ARMS,
+    JOINT_STATE_SIZE,
+    N_ARMS,
+    N_LEGS,
+    JointGroupCommand,
+)
+
+
+def _load(params: WalkingParams | str | None) -> WalkingParams:
+    if params is None:
+        return WalkingParams.load()
+    if isinstance(params, WalkingParams):
+        return params
+    return WalkingParams.load(str(params))
+
+
+def obs_to_vectors(obs: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """joint_state (54) and body_state (13) vectors from a PR2 observation dict.
+
+    Reads ``obs["agent"]["joint_state"][{arms,legs}_{positions,velocities}]`` (arms optional;
+    ``arms_efforts`` optional: the applied arm torques, NaN in the vector when absent) and
+    ``obs["agent"]["body_state"][world_pos, world_orient (w,x,y,z), linear_velocities,
+    angular_velocities]``.
+    """
+    try:
+        agent = obs["agent"]
+        js = agent["joint_state"]
+        bs = agent["body_state"]
+        legs_q = np.asarray(js["legs_positions"], dtype=float).reshape(-1)
+        legs_v = np.asarray(js["legs_velocities"], dtype=float).reshape(-1)
+        arms_q = np.asarray(js.get("arms_positions", np.zeros(N_ARMS)), dtype=float).reshape(-1)
+        arms_v = np.asarray(js.get("arms_velocities", np.zeros(N_ARMS)), dtype=float).reshape(-1)
+        arms_e = js.get("arms_efforts", js.get("arms_applied_effort"))
+        arms_e = (np.full(N_ARMS, np.nan) if arms_e is None
+                  else np.asarray(arms_e, dtype=float).reshape(-1))
+        pos = np.asarray(bs["world_pos"], dtype=float).reshape(-1)
+        quat = np.asarray(bs["world_orient"], dtype=float).reshape(-1)
+        lin = np.asarray(bs["linear_velocities"], dtype=float).reshape(-1)
+        ang = np.asarray(bs["angular_velocities"], dtype=float).reshape(-1)
+    except (KeyError, TypeError) as err:
+        raise ValueError(f"obs: missing or malformed observation entry: {err}") from err
+    for name, arr, n in (("legs_positions", legs_q, N_LEGS), ("legs_velocities", legs_v, N_LEGS),
+                         ("arms_positions", arms_q, N_ARMS), ("arms_velocities", arms_v, N_ARMS),
+                         ("world_pos", pos, 3), ("world_orient", quat, 4),
+                         ("linear_velocities", lin, 3), ("angular_velocities", ang, 3)):
+        if arr.shape != (n,) or not np.all(np.isfinite(arr)):
+            raise ValueError(f"obs: {name} must be {n} finite values, got {arr}")
+    if arms_e.shape != (N_ARMS,):
+        raise ValueError(f"obs: arms_efforts must be {N_ARMS} values, got {arms_e}")
+    # Effort slots: the arm efforts if the observation has them (NaN = unknown), legs unused.
+    joint_state = np.concatenate([arms_q, legs_q, arms_v, legs_v, arms_e, np.zeros(N_LEGS)])
+    body_state = np.concatenate([pos, quat, lin, ang])
+    return joint_state, body_state
+
+
+class WalkingController(LeafSystem):
+    """The built-in walking controller (see the module docstring for ports and units).
+
+    Args:
+        params: a WalkingParams, a path to a YAML file, or None for controllers/walking.yaml.
+    """
+
+    def __init__(self, params: WalkingParams | str | None = None):
+        super().__init__()
+        self.params = _load(params)
+        self.core = WalkingCore(self.params)
+        self._cmd_port = self.DeclareVectorInputPort(COMMAND_PORT, 3)
+        self._js_port = self.DeclareVectorInputPort("joint_state", JOINT_STATE_SIZE)
+        self._bs_port = self.DeclareVectorInputPort("body_state", BODY_STATE_SIZE)
+        n_status = len(STATUS_FIELDS)
+        self._state = self.DeclareDiscreteState(N_LEGS + n_status)
+        self.DeclarePeriodicDiscreteUpdateEvent(self.params.control_period, 0.0, self._update)
+        self.DeclareInitializationDiscreteUpdateEvent(self._update)
+        self.DeclareAbstractOutputPort(
+            "legs_command", lambda: AbstractValue.Make(JointGroupCommand.effort(np.zeros(N_LEGS))),
+            self._calc_legs, prerequisites_of_calc={self.discrete_state_ticket(self._state)})
+        self.DeclareVectorOutputPort(
+            "status", n_status, self._calc_status,
+            prerequisites_of_calc={self.discrete_state_ticket(self._state)})
+        self._t_in_process = 0.0
+
+    # ---- diagram path -------------------------------------------------------------------------
+    def _update(self, context, discrete_state) -> None:
+        if self._cmd_port.HasValue(context):
+            cmd = self._cmd_port.Eval(context)
+        else:
+            cmd = np.zeros(3)
+        cmd = check_command(cmd, COMMAND_PORT)
+        joint_state = self._js_port.Eval(context)
+        q, v = self.core.model.state_from_ports(joint_state, self._bs_port.Eval(context))
+        # The applied arm efforts (one step old) tell the QP what the arm controller does.
+        tau_arms = joint_state[EFFORT_ARMS] if context.get_time() > 0.0 else None
+        tau = self.core.update(context.get_time(), q, v, cmd, tau_arms)
+        discrete_state.get_mutable_vector(self._state).SetFromVector(
+            np.concatenate([tau, self.core.info.vector()]))
+
+    def _calc_legs(self, context, output) -> None:
+        tau = context.get_discrete_state(self._state).get_value()[:N_LEGS]
+        output.set_value(JointGroupCommand.effort(tau.copy()))
+
+    def _calc_status(self, context, output: BasicVector) -> None:
+        output.SetFromVector(context.get_discrete_state(self._state).get_value()[N_LEGS:])
+
+    # ---- in-process path ---------------------------------------------------------------------
+    def command(self, obs: Mapping[str, Any], vx: float, vy: float, yaw_rate: float,
+                t: float | None = None) -> dict[str, Any]:
+        """Leg action for one control tick, from a PR2 observation dict.
+
+        Args:
+            obs: the observation (see :func:`obs_to_vectors`).
+            vx, vy, yaw_rate: velocity command in the heading frame [m/s, m/s, rad/s].
+            t: simulation time [s]. None: the previous call's time plus ``control_period``
+                (call once per control period).
+        Returns:
+            ``{"ctrl_mode": "effort", "joint_values": tau (10), "stiffness": None,
+            "dampings": None}``.
+        """
+        cmd = check_command([vx, vy, yaw_rate], COMMAND_PORT)
+        joint_state, body_state = obs_to_vectors(obs)
+        if t is None:
+            t = self._t_in_process
+        self._t_in_process = t + self.params.control_period
+        q, v = self.core.model.state_from_ports(joint_state, body_state)
+        tau = self.core.update(float(t), q, v, cmd, joint_state[EFFORT_ARMS])
+        return {"ctrl_mode": "effort", "joint_values": tau.copy(), "stiffness": None,
+                "dampings": None}
+
+    def reset(self) -> None:
+        """Forget the gait state and the in-process clock."""
+        self.core.reset()
+        self._t_in_process = 0.0

@@ -1,0 +1,666 @@
+"""The walking control law, independent of Drake's systems framework.
+
+``WalkingCore.update(t, q, v, command)`` runs one control tick: the gait state machine, the
+footstep plan, the CoM (LIPM) control, the swing trajectory and the whole-body QP, and returns
+the leg torques. :class:`pr2_drake.controllers.walking.WalkingController` wraps it as a
+LeafSystem and offers the in-process ``command(obs, ...)`` call.
+
+KUAVO's legs have no ankle roll and its soles touch the ground along a line (heel and toe
+spheres, see models/kuavo/params.yaml): in single support the ZMP is on the sole's centre line,
+so sideways the robot is a linear inverted pendulum steered only by where it puts its feet.
+The design follows from that:
+
+- Footsteps come from the command (:mod:`footsteps`), then move with the divergent component of
+  motion (DCM, capture point) xi = c + cdot / omega: the swing sole goes where the DCM will be
+  at the next ZMP switch, minus the periodic offset the next planned steps need. A step that
+  cannot reach far enough lands sooner (step timing).
+- Double support moves the DCM to where the next step needs it (DCM tracking with the ZMP
+  inside the support region), and lasts longer while that still helps.
+- Single support keeps the ZMP on the stance sole; along the sole an ankle term tracks the DCM.
+- Standing holds the CoM over the middle of the soles (PD); stopping uses pydrake's
+  ``ZmpPlanner`` (LIPM + ZMP preview) to bring the CoM there after the last step.
+
+Gait phases: STAND, START (weight shift before the first step), SINGLE, DOUBLE, STOP (settle
+after the last step, then STAND).
+
+Frames: W world (z up, flat ground), soles S (``l_sole``, ``r_sole``), heading frame H (yaw only).
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.math import RotationMatrix
+
+from pr2_drake.controllers.com_plan import ComPlanner, zmp_point
+from pr2_drake.controllers.footsteps import SIDE_SIGN, clamp_to_stance, next_footstep, rot2, wrap
+from pr2_drake.controllers.swing import SwingTrajectory
+from pr2_drake.controllers.walking_params import WalkingParams
+from pr2_drake.controllers.wb_model import WholeBodyModel
+from pr2_drake.controllers.wbqp import WholeBodyQp
+from pr2_drake.robot.params import load_robot_params
+
+GRAVITY = 9.81
+COMMAND_PORT = "velocity_command"
+
+
+class Phase(enum.IntEnum):
+    STAND = 0
+    START = 1
+    SINGLE = 2
+    DOUBLE = 3
+    STOP = 4
+
+
+# Layout of the status vector (also the status output port).
+STATUS_FIELDS = ("qp_ok", "qp_failures", "qp_iterations", "phase", "stance_side", "falling")
+
+
+def check_command(command, port: str = COMMAND_PORT) -> np.ndarray:
+    """A velocity command (vx, vy, yaw_rate) as a float array, or ValueError naming the port."""
+    try:
+        cmd = np.asarray(command, dtype=float).reshape(-1)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{port}: expected 3 numbers (vx, vy, yaw_rate), got {command!r}") from err
+    if cmd.shape != (3,):
+        raise ValueError(f"{port}: expected 3 values (vx, vy, yaw_rate), got shape {cmd.shape}")
+    if not np.all(np.isfinite(cmd)):
+        raise ValueError(f"{port}: command contains NaN or inf: {cmd}")
+    return cmd
+
+
+def rotation_error(R_d: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """Axis-angle vector (in W) of R_d R^T: the rotation that takes R to R_d [rad]."""
+    E = R_d @ R.T
+    v = 0.5 * np.array([E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]])
+    c = 0.5 * (E[0, 0] + E[1, 1] + E[2, 2] - 1.0)
+    s = float(np.sqrt(v @ v))
+    if s < 1e-9:
+        if c > 0:
+            return v
+        # 180 degrees: axis from the symmetric part.
+        aa = RotationMatrix(E).ToAngleAxis()
+        return aa.axis() * aa.angle()
+    return v * (np.arctan2(s, c) / s)
+
+
+def yaw_of(R: np.ndarray) -> float:
+    return float(np.arctan2(R[1, 0], R[0, 0]))
+
+
+def rot_z(yaw: float) -> np.ndarray:
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+@dataclass
+class TickInfo:
+    """What one tick did (for the status port and the benchmark)."""
+
+    qp_ok: bool = True
+    qp_failures: int = 0
+    qp_iterations: int = 0
+    phase: Phase = Phase.STAND
+    stance_side: int = -1  # -1 both
+    falling: bool = False
+
+    def vector(self) -> np.ndarray:
+        return np.array([float(self.qp_ok), self.qp_failures, self.qp_iterations,
+                         int(self.phase), self.stance_side, float(self.falling)])
+
+
+class WalkingCore:
+    """The walking controller's state and control law (see module docstring)."""
+
+    def __init__(self, params: WalkingParams | None = None):
+        self.params = params or WalkingParams.load()
+        self.model = WholeBodyModel()
+        m = self.model
+        robot = load_robot_params()
+        self.effort = robot.effort_limits("legs")
+        # A stance sole's points do not accelerate: 3 rows for the first point, 2 across the
+        # line to the second, 1 off the plane of a third (if any): independent rows only.
+        self.n_kin_foot = min(3 * m.n_points, 6) if m.n_points > 2 else 5
+        self.qp = WholeBodyQp(m.nv, m.maps.v_base, m.v_legs, self.effort, 2 * m.n_points,
+                              self.params.qp, arm_v=m.v_arms, n_kin=2 * self.n_kin_foot,
+                              box_v=m.v_legs)
+        lower, upper = robot.position_limits("legs")
+        margin = self.params.qp.joint_limit_margin
+        self.q_leg_min = lower + margin
+        self.q_leg_max = upper - margin
+        knee = [i for i, j in enumerate(robot.group("legs")) if j.name.endswith("knee")]
+        self.q_leg_max[knee] = np.minimum(self.q_leg_max[knee], self.params.qp.knee_max)
+        self.q_arms_hold = robot.default_positions("arms")
+        self.arm_effort = robot.effort_limits("arms")
+        self.com_planner = ComPlanner(self.params.gait)
+        self.debug = False
+        self.debug_info: dict = {}
+        self.mg = m.mass * GRAVITY
+        # Posture task: joints only (rows of the identity on the joint velocities).
+        self._joint_v = m.maps.v_joints
+        self._joint_q = m.maps.q_joints
+        self.q_nominal_joints = m.q_nominal[self._joint_q]
+        n_arms = len(m.v_arms)
+        pp = self.params
+        self._posture_kp = np.r_[np.full(n_arms, pp.posture_arms.kp),
+                                 np.full(len(m.v_legs), pp.posture_legs.kp)]
+        self._posture_kd = np.r_[np.full(n_arms, pp.posture_arms.kd),
+                                 np.full(len(m.v_legs), pp.posture_legs.kd)]
+        self._posture_w = np.r_[np.full(n_arms, pp.posture_arms.weight),
+                                np.full(len(m.v_legs), pp.posture_legs.weight)]
+        self.reset()
+
+    # ---- state -------------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Forget the gait state: the next tick starts standing from the measured pose."""
+        self.phase = Phase.STAND
+        self.t_phase = 0.0
+        self.phase_duration = 0.0
+        self.stance = -1  # stance side in SINGLE / new stance in DOUBLE / first stance in START
+        self.footholds: list[np.ndarray | None] = [None, None]
+        self.swing: SwingTrajectory | None = None
+        self.swing_plan: np.ndarray | None = None  # planned target before DCM adjustment
+        self.heading: float | None = None
+        self.t_last: float | None = None
+        self.t_touchdown = -np.inf
+        self.command = np.zeros(3)
+        self.z_target: float | None = None
+        self.v_correction = np.zeros(2)
+        self._td_com = (0.0, np.zeros(2))
+        self._t_command_change = np.inf
+        self._last_command = np.zeros(3)
+        self.info = TickInfo()
+        self.qp.last_tau = np.zeros(len(self.effort))
+        self.qp.failures = 0
+        self.qp._first = True
+
+    def clip_command(self, command) -> np.ndarray:
+        """Check (ValueError on NaN/inf/shape) and clip the command to the configured limits."""
+        cmd = check_command(command)
+        lim = self.params.limits
+        return np.array([min(max(cmd[0], lim.vx_min), lim.vx_max),
+                         min(max(cmd[1], -lim.vy_max), lim.vy_max),
+                         min(max(cmd[2], -lim.yaw_rate_max), lim.yaw_rate_max)])
+
+    # ---- helpers -----------------------------------------------------------------------------
+    def _sole_pose4(self, side: int) -> np.ndarray:
+        X = self.model.sole_pose(side)
+        p = X.translation()
+        return np.array([p[0], p[1], p[2], yaw_of(X.rotation().matrix())])
+
+    def _moving(self) -> bool:
+        c = self.command
+        th = self.params.limits.start_threshold
+        return bool(abs(c[0]) > th or abs(c[1]) > th or abs(c[2]) > th)
+
+    def _ground_z(self) -> float:
+        zs = [f[2] for f in self.footholds if f is not None]
+        return float(sum(zs) / len(zs)) if zs else 0.0
+
+    # ---- gait events -------------------------------------------------------------------------
+    def _start_walking(self, t: float, com, comd) -> None:
+        """From both soles down: move the DCM over the first stance sole, then step."""
+        c = self.command
+        # Lead with the foot on the side of motion (sideways or turning), else the right foot.
+        if abs(c[1]) > self.params.limits.start_threshold:
+            first_swing = 0 if c[1] > 0 else 1
+        elif abs(c[2]) > self.params.limits.start_threshold:
+            first_swing = 0 if c[2] > 0 else 1
+        else:
+            first_swing = 1
+        stance = 1 - first_swing
+        g = self.params.gait
+        self.stance = stance
+        self.v_correction = np.zeros(2)
+        self._td_com = (t, com[:2].copy())
+        self.swing_plan = next_footstep(self.footholds[stance], stance, self.heading, c, g)
+        self._begin_shift(t, com, comd, Phase.START, g.start_shift)
+
+    def _begin_shift(self, t: float, com, comd, phase: Phase, duration: float) -> None:
+        """Start a double-support phase that moves the DCM to where the next step needs it.
+
+        At lift-off the DCM must be such that, with the ZMP on the stance sole, it reaches the
+        planned swing target plus the periodic offset b1 at the next ZMP switch.
+        """
+        g = self.params.gait
+        omega = np.sqrt(GRAVITY / g.com_height)
+        p_st = zmp_point(self.footholds[self.stance], g)
+        p_new = zmp_point(self.swing_plan, g)
+        b1 = self._planned_dcm_offset()
+        decay = np.exp(-omega * (g.swing_time + 0.5 * g.double_support))
+        xi_end = p_st + (p_new + b1 - p_st) * decay
+        self.start_dcm = (t, com[:2] + comd[:2] / omega, xi_end)
+        self._shift_err = np.inf
+        self.phase = phase
+        self.t_phase = t
+        self.phase_duration = duration
+
+    def _shift_comdd(self, t: float, com, comd) -> np.ndarray:
+        """CoM acceleration (xy) of the weight shift: DCM tracking with a bounded ZMP."""
+        g = self.params.gait
+        omega = np.sqrt(GRAVITY / g.com_height)
+        t0, xi0, xi1 = self.start_dcm
+        T = max(self.phase_duration, 1e-3)
+        tau = (t - t0) / T
+        tc = min(max(tau, 0.0), 1.0)
+        sd = tc**3 * (10 - 15 * tc + 6 * tc * tc)
+        dsd = 30 * tc * tc * (1 - tc) ** 2 / T
+        xi_d = xi0 + (xi1 - xi0) * sd
+        xid_d = (xi1 - xi0) * dsd
+        xi = com[:2] + comd[:2] / omega
+        zmp = xi - (xid_d - g.dcm_track_gain * (xi - xi_d)) / omega
+        # Keep the ZMP inside the double-support region (heading frame box around the soles).
+        R = rot2(self.heading)
+        pts = np.array([R.T @ zmp_point(f, g) for f in self.footholds])
+        z_H = R.T @ zmp
+        half = 0.5 * self.model.foot_length - 0.02
+        z_H[0] = np.clip(z_H[0], pts[:, 0].min() - half, pts[:, 0].max() + half)
+        z_H[1] = np.clip(z_H[1], pts[:, 1].min(), pts[:, 1].max())
+        return omega**2 * (com[:2] - R @ z_H)
+
+    def _single_comdd(self, t: float, com, comd) -> np.ndarray:
+        """CoM acceleration (xy) in single support: LIPM about a ZMP on the stance sole.
+
+        The ZMP sits at the sole centre plus an ankle correction along the sole (the only
+        direction a line foot can move it) that tracks the DCM reference of this step,
+        xi_ref(t) = p + (xi_liftoff - p) exp(omega (t - t_liftoff)).
+        """
+        g = self.params.gait
+        omega = np.sqrt(GRAVITY / g.com_height)
+        foot = self.footholds[self.stance]
+        p_st = zmp_point(foot, g)
+        xi = com[:2] + comd[:2] / omega
+        xi_ref = p_st + (self.start_dcm[2] - p_st) * np.exp(omega * (t - self.t_phase))
+        axis = np.array([np.cos(foot[3]), np.sin(foot[3])])
+        dx = (1.0 + g.ankle_dcm_gain / omega) * float(axis @ (xi - xi_ref))
+        lim = g.ankle_zmp_range
+        zmp = p_st + axis * min(max(dx, -lim), lim)
+        return omega * omega * (com[:2] - zmp)
+
+    def _lift_off(self, t: float, com, comd) -> None:
+        g = self.params.gait
+        swing_side = 1 - self.stance
+        self.footholds[self.stance] = self._sole_pose4(self.stance)
+        start = self._sole_pose4(swing_side)
+        target = clamp_to_stance(self.swing_plan, self.footholds[self.stance], self.stance, g)
+        self.swing = SwingTrajectory(t, g.single_support, start, target, g.swing_height,
+                                     g.swing_land_fraction)
+        self.dcm_offset = self._planned_dcm_offset()
+        self._t_retarget = t
+        self.phase = Phase.SINGLE
+        self.t_phase = t
+        self.phase_duration = g.single_support
+
+    def _touchdown(self, t: float, com, comd) -> None:
+        g = self.params.gait
+        landed = 1 - self.stance
+        self.footholds[landed] = self._sole_pose4(landed)
+        old = self.footholds[self.stance]
+        new = self.footholds[landed]
+        self.swing = None
+        self.t_touchdown = t
+        self.stance = landed
+        if not self._moving() and self._square(new, old, landed):
+            mid = 0.5 * (zmp_point(new, g) + zmp_point(old, g))
+            times = np.array([t, t + 0.5 * g.stop_settle, t + g.stop_settle + 1.0])
+            pts = np.array([zmp_point(old, g), mid, mid]).T
+            self.com_planner.plan(times, pts, com[:2], comd[:2], g.com_height)
+            self.phase = Phase.STOP
+            self.t_phase = t
+            self.phase_duration = g.stop_settle
+            return
+        self._update_speed_correction(t, com)
+        self.swing_plan = next_footstep(new, landed, self.heading, self._plan_command(), g)
+        self._begin_shift(t, com, comd, Phase.DOUBLE, g.double_support)
+
+    def _update_speed_correction(self, t: float, com) -> None:
+        """Integral correction of the planned speed from the CoM speed over the last step."""
+        g = self.params.gait
+        t0, c0 = self._td_com
+        self._td_com = (t, com[:2].copy())
+        if (t - t0 < 0.5 * g.step_period or t - t0 > 3.0 * g.step_period
+                or t0 < self._t_command_change):
+            return  # no integration over odd steps or while the command ramps (wind-up)
+        R = rot2(self.heading)
+        v_H = R.T @ (com[:2] - c0) / (t - t0)
+        err = self.command[:2] - v_H
+        lim = g.speed_correction_max
+        self.v_correction = np.clip(self.v_correction + g.speed_gain * err, -lim, lim)
+
+    def _plan_command(self) -> np.ndarray:
+        """The command the footstep planner uses: the command plus the speed correction."""
+        c = self.command.copy()
+        if self._moving():
+            c[:2] += self.v_correction
+        return c
+
+    def _square(self, a: np.ndarray, b: np.ndarray, side_a: int) -> bool:
+        """True when sole a stands about beside sole b (a stance to stop on)."""
+        d = rot2(b[3]).T @ (a[:2] - b[:2])
+        g = self.params.gait
+        lateral = SIDE_SIGN[side_a] * d[1]
+        return bool(abs(d[0]) < 0.06 and g.min_step_width <= lateral <= g.step_width + 0.08
+                    and abs(wrap(a[3] - b[3])) < 0.15)
+
+    # ---- the tick ----------------------------------------------------------------------------
+    def update(self, t: float, q: np.ndarray, v: np.ndarray, command,
+               tau_arms: np.ndarray | None = None) -> np.ndarray:
+        """One control tick at time t [s]: plant state (q, v) in, leg torques [Nm] out.
+
+        Args:
+            command: (vx, vy, yaw_rate) in the heading frame [m/s, m/s, rad/s]; clipped to the
+                limits, ValueError on NaN/inf.
+            tau_arms: the arm torques [Nm] being applied (e.g. the testbed's measured efforts);
+                None: assume the arm posture block's spring-damper around the default pose.
+        """
+        p = self.params
+        g = p.gait
+        target_cmd = self.clip_command(command)
+        m = self.model
+        m.update(q, v)
+        if self.t_last is not None and t < self.t_last - 1e-9:
+            self.reset()  # the simulation restarted
+        dt = 0.0 if self.t_last is None else t - self.t_last
+        self.t_last = t
+        # The command used is rate-limited (acceleration limits), except that stopping the
+        # walking (all zero) is immediate.
+        lim = p.limits
+        rate = np.array([lim.accel_max, lim.accel_max, lim.yaw_accel_max]) * dt
+        if np.any(target_cmd != 0.0):
+            self.command = self.command + np.clip(target_cmd - self.command, -rate, rate)
+        else:
+            self.command = target_cmd
+        if np.any(np.abs(target_cmd - self.command) > 1e-9) or np.any(
+                np.abs(self.command - self._last_command) > 1e-9):
+            self._t_command_change = t
+        self._last_command = self.command.copy()
+
+        R_WB = m.base_pose().rotation().matrix()
+        pelvis_yaw = yaw_of(R_WB)
+        if self.heading is None:
+            self.heading = pelvis_yaw
+        # Integrate the yaw-rate command, but stop while the heading leads the pelvis by more
+        # than heading_lead_max (no wind-up when the body cannot follow).
+        new_heading = self.heading + self.command[2] * dt
+        lead_new = abs(wrap(new_heading - pelvis_yaw))
+        if lead_new <= p.limits.heading_lead_max or lead_new < abs(wrap(self.heading - pelvis_yaw)):
+            self.heading = new_heading
+        if self.footholds[0] is None:
+            self.footholds = [self._sole_pose4(0), self._sole_pose4(1)]
+
+        com, comd, J_com, jdv_com = m.com()
+
+        # ---- gait state machine ----
+        if self.phase == Phase.STAND or self.phase == Phase.STOP:
+            if self._moving():
+                self.footholds = [self._sole_pose4(0), self._sole_pose4(1)]
+                self._start_walking(t, com, comd)
+            elif self.phase == Phase.STOP and t - self.t_phase >= self.phase_duration:
+                self.phase = Phase.STAND
+                self.t_phase = t
+        elif self.phase in (Phase.START, Phase.DOUBLE):
+            # Lift off when the DCM is where the next step needs it (or after a time-out).
+            elapsed = t - self.t_phase
+            omega = np.sqrt(GRAVITY / g.com_height)
+            err = float(np.linalg.norm(com[:2] + comd[:2] / omega - self.start_dcm[2]))
+            if elapsed >= min(self.phase_duration, g.min_double_support) - 1e-9 and (
+                    err > self._shift_err + 1e-4 and err > g.runaway_dcm_error):
+                self._lift_off(t, com, comd)  # the DCM runs away: step now
+            elif elapsed >= self.phase_duration - 1e-9:
+                # Stay longer only while the double support is still reducing the error.
+                if (err < g.liftoff_dcm_tolerance or err >= self._shift_err - 1e-4
+                        or elapsed >= self.phase_duration + g.max_shift_extension - 1e-9):
+                    self._lift_off(t, com, comd)
+            self._shift_err = err
+        if self.phase == Phase.SINGLE:
+            swing_side = 1 - self.stance
+            self.swing.evaluate(t)
+            progress = self.swing.progress
+            heights = m.contact_heights(swing_side) - self.footholds[self.stance][2]
+            if ((progress >= g.touchdown_min_phase and heights.min() < g.touchdown_height)
+                    or t >= self.swing.landing_time + g.late_touchdown):
+                self._touchdown(t, com, comd)
+            elif progress < g.dcm_freeze_phase:
+                self._adjust_swing_target(t, com, comd)
+
+        # ---- tasks ----
+        nv = m.nv
+        H = np.zeros((nv, nv))
+        gvec = np.zeros(nv)
+
+        tasks = []
+
+        def add_task(J, a, w):
+            nonlocal H, gvec
+            if self.debug:
+                tasks.append((J, a, w))
+            Jw = J * w[:, None]
+            H += Jw.T @ J
+            gvec -= Jw.T @ a
+
+        # CoM.
+        ground = self._ground_z()
+        if self.phase == Phase.STAND:
+            target = 0.5 * (zmp_point(self.footholds[0], g) + zmp_point(self.footholds[1], g))
+            a_xy = p.com_xy.kp * (target - com[:2]) - p.com_xy.kd * comd[:2]
+        elif self.phase in (Phase.START, Phase.DOUBLE):
+            a_xy = self._shift_comdd(t, com, comd)
+        elif self.phase == Phase.SINGLE:
+            a_xy = self._single_comdd(t, com, comd)
+        else:
+            a_xy = self.com_planner.comdd(t, com[:2], comd[:2])
+        # CoM height: standing height at rest, the (lower) LIPM height when walking; the target
+        # moves at a bounded rate, starting from the measured height.
+        z_goal = ground + (g.stand_com_height if self.phase == Phase.STAND else g.com_height)
+        if self.z_target is None:
+            self.z_target = float(com[2])
+        dz = g.height_rate * dt
+        self.z_target += min(max(z_goal - self.z_target, -dz), dz)
+        a_z = p.com_z.kp * (self.z_target - com[2]) - p.com_z.kd * comd[2]
+        a_com = np.array([a_xy[0], a_xy[1], a_z])
+        if self.phase == Phase.SINGLE:
+            # On a line foot the lateral CoM acceleration is set by gravity (the ZMP is on the
+            # sole's centre line): express the task in the stance sole's frame and keep only a
+            # small weight sideways; foot placement controls the lateral motion instead.
+            Rs = rot_z(self.footholds[self.stance][3])
+            add_task(Rs.T @ J_com, Rs.T @ (a_com - jdv_com),
+                     np.array([p.com_xy.weight, p.com_lateral_single_weight, p.com_z.weight]))
+        else:
+            add_task(J_com, a_com - jdv_com,
+                     np.array([p.com_xy.weight, p.com_xy.weight, p.com_z.weight]))
+
+        # Pelvis orientation (level, yaw along the heading).
+        w_WB = v[m.maps.v_base[:3]]
+        e = rotation_error(rot_z(self.heading), R_WB)
+        a_pel = p.pelvis.kp * e - p.pelvis.kd * w_WB
+        J_pel = np.zeros((3, nv))
+        J_pel[:, m.maps.v_base[:3]] = np.eye(3)
+        add_task(J_pel, a_pel, np.full(3, p.pelvis.weight))
+
+        # Contacts and swing.
+        fz_max = np.zeros(2 * m.n_points)
+        fz_min = np.full(2 * m.n_points, p.qp.fz_min)
+        fmax = p.qp.fz_max_factor * self.mg
+        Jc_all = np.zeros((6 * m.n_points, nv))
+        J_kin = np.zeros((2 * self.n_kin_foot, nv))
+        a_kin = np.full(2 * self.n_kin_foot, np.nan)
+        in_contact = [True, True]
+        if self.phase == Phase.SINGLE:
+            in_contact[1 - self.stance] = False
+        for side in (0, 1):
+            Jc, jdv_c = m.contact_points(side)
+            rows = slice(3 * m.n_points * side, 3 * m.n_points * (side + 1))
+            Jc_all[rows] = Jc
+            if not in_contact[side]:
+                continue
+            bound = fmax
+            if self.phase == Phase.DOUBLE and side == self.stance:
+                ramp = (t - self.t_touchdown) / max(p.qp.load_ramp, 1e-6)
+                bound = fmax * float(np.clip(ramp, 0.1, 1.0))
+            fz_max[m.n_points * side:m.n_points * (side + 1)] = bound
+            if self.phase == Phase.SINGLE:
+                fz_min[m.n_points * side:m.n_points * (side + 1)] = p.qp.fz_min_single
+            vc = Jc @ v
+            a_c = -p.qp.contact_kd * vc - jdv_c
+            kr = slice(self.n_kin_foot * side, self.n_kin_foot * (side + 1))
+            E = self._sole_constraint_rows(side)
+            J_kin[kr] = E @ Jc
+            if p.qp.hard_contacts and bound >= fmax:
+                a_kin[kr] = E @ a_c
+            else:  # loading or unloading sole, or soft contacts: a cost instead
+                add_task(E @ Jc, E @ a_c, np.full(E.shape[0], p.qp.contact_weight))
+        if self.phase == Phase.SINGLE:
+            self._add_swing_task(t, add_task)
+
+        # Posture.
+        q_j = q[self._joint_q]
+        v_j = v[self._joint_v]
+        a_post = self._posture_kp * (self.q_nominal_joints - q_j) - self._posture_kd * v_j
+        J_post = np.zeros((len(self._joint_v), nv))
+        J_post[np.arange(len(self._joint_v)), self._joint_v] = 1.0
+        add_task(J_post, a_post, self._posture_w)
+
+        # Arm torques: measured, or the posture block's spring-damper (position mode).
+        if tau_arms is None or not np.all(np.isfinite(tau_arms)):
+            q_arms = q[m.maps.q_joints[:len(m.v_arms)]]
+            tau_arms = np.clip(p.arm_stiffness * (self.q_arms_hold - q_arms)
+                               - p.arm_damping * v[m.v_arms], -self.arm_effort, self.arm_effort)
+        # Joint limits: accelerations that stop each leg joint within its range in horizon h.
+        h = p.qp.joint_limit_horizon
+        q_l = q[m.q_legs]
+        v_l = v[m.v_legs]
+        a_lo = 2.0 * (self.q_leg_min - q_l - v_l * h) / (h * h)
+        a_hi = 2.0 * (self.q_leg_max - q_l - v_l * h) / (h * h)
+        bad = a_lo > a_hi
+        mid = 0.5 * (a_lo + a_hi)
+        a_lo = np.where(bad, mid, a_lo)
+        a_hi = np.where(bad, mid, a_hi)
+        res = self.qp.solve(m.mass_matrix(), m.bias(), Jc_all, H, gvec, fz_max, tau_arms, fz_min,
+                            J_kin, a_kin, (np.clip(a_lo, -2000, 2000), np.clip(a_hi, -2000, 2000)))
+        if self.debug:
+            self.debug_info = dict(a_com=a_com, com_ach=J_com @ res.vdot + jdv_com,
+                                   a_pel=a_pel, pel_ach=res.vdot[m.maps.v_base[:3]],
+                                   contact_acc=Jc_all @ res.vdot,
+                                   costs=[float(np.sum(w * (J @ res.vdot - a) ** 2))
+                                          for J, a, w in tasks])
+        falling = bool(com[2] - ground < 0.5 * g.com_height)
+        self.info = TickInfo(res.ok, self.qp.failures, res.iterations, self.phase,
+                             self.stance if self.phase == Phase.SINGLE else -1, falling)
+        self.last_result = res
+        return res.tau
+
+    def _sole_constraint_rows(self, side: int) -> np.ndarray:
+        """Selection E (n_kin_foot x 3n) of independent rows of a sole's point accelerations."""
+        m = self.model
+        X = m.sole_pose(side)
+        P = X.rotation().matrix() @ m.p_SC  # point offsets in W (3 x n)
+        n = m.n_points
+        E = np.zeros((self.n_kin_foot, 3 * n))
+        E[0:3, 0:3] = np.eye(3)
+        d = P[:, 1] - P[:, 0]
+        d /= np.sqrt(d @ d)
+        e1 = np.array([d[1], -d[0], 0.0])  # d x z
+        n1 = np.sqrt(e1 @ e1)
+        if n1 < 1e-6:
+            e1 = np.array([0.0, d[2], -d[1]])  # d x x
+            n1 = np.sqrt(e1 @ e1)
+        e1 /= n1
+        e2 = np.array([d[1] * e1[2] - d[2] * e1[1], d[2] * e1[0] - d[0] * e1[2],
+                       d[0] * e1[1] - d[1] * e1[0]])
+        E[3, 3:6] = e1
+        E[4, 3:6] = e2
+        if self.n_kin_foot > 5:
+            k = 2 if n < 4 else 3  # a point off the first line
+            nrm = np.cross(d, P[:, k] - P[:, 0])
+            E[5, 3 * k:3 * k + 3] = nrm / np.linalg.norm(nrm)
+        return E
+
+    def _adjust_swing_target(self, t: float, com, comd) -> None:
+        """Capture-point (DCM) stepping: place the swing sole so that, at the next ZMP switch,
+        the DCM has the offset from the new sole that the planned steps need.
+
+        With the ZMP on the stance sole, the DCM xi = c + cdot / omega diverges as
+        xi(t) = p + (xi0 - p) exp(omega t). For the planned next two steps L1, L2 of period T,
+        the periodic offset at a switch is b = (L1 exp(omega T) + L2) / (exp(2 omega T) - 1).
+        The target is xi_predicted - b, blended with the planned footstep by ``dcm_gain``.
+        """
+        g = self.params.gait
+        omega = np.sqrt(GRAVITY / g.com_height)
+        p_st = zmp_point(self.footholds[self.stance], g)
+        xi = com[:2] + comd[:2] / omega
+        plan = self.swing_plan
+        R = rot2(self.heading)
+        gain = np.array(g.dcm_gain)
+
+        def adjustment(t_land: float) -> np.ndarray:
+            t_left = max(t_land - t, 0.0)
+            xi_pred = p_st + (xi - p_st) * np.exp(omega * (t_left + 0.5 * g.double_support))
+            return gain * (R.T @ (xi_pred - self.dcm_offset - zmp_point(plan, g)))
+
+        stance = self.footholds[self.stance]
+
+        def place(e: np.ndarray):
+            """Reachable target for adjustment e, and how far it falls short [m]."""
+            n = float(np.linalg.norm(e))
+            e_lim = e * (g.dcm_max_adjust / n) if n > g.dcm_max_adjust else e
+            want = plan.copy()
+            want[:2] += R @ e
+            got = plan.copy()
+            got[:2] += R @ e_lim
+            got = clamp_to_stance(got, stance, self.stance, g)
+            return got, float(np.linalg.norm(want[:2] - got[:2]))
+
+        target, short = place(adjustment(self.swing.landing_time))
+        if short > g.timing_shortfall and g.min_swing_time < g.swing_time:
+            # Step timing: a step that cannot reach far enough lands sooner instead, so the
+            # DCM has less time to run away.
+            sooner = max(t + g.min_remaining_swing, self.swing.t0 + g.min_swing_time)
+            if sooner < self.swing.landing_time - 1e-3:
+                target_sooner, short_sooner = place(adjustment(sooner))
+                if short_sooner < short:
+                    self.swing.retime(t, sooner)
+                    target = target_sooner
+        # Move the swing target at a bounded speed so the swing curve stays smooth.
+        step = target[:2] - self.swing.target[:2]
+        max_step = g.retarget_speed * max(t - self._t_retarget, 0.0)
+        n = np.linalg.norm(step)
+        if n > max_step:
+            step *= max_step / n
+        self.swing.target[:2] += step
+        self._t_retarget = t
+
+    def _planned_dcm_offset(self) -> np.ndarray:
+        """Periodic DCM offset b (xy, W) at the switch onto the planned swing target."""
+        g = self.params.gait
+        omega = np.sqrt(GRAVITY / g.com_height)
+        T = g.step_period
+        swing_side = 1 - self.stance
+        f1 = self.swing_plan
+        cmd = self._plan_command()
+        f2 = next_footstep(f1, swing_side, self.heading, cmd, g)
+        f3 = next_footstep(f2, self.stance, self.heading, cmd, g)
+        L1 = zmp_point(f2, g) - zmp_point(f1, g)
+        L2 = zmp_point(f3, g) - zmp_point(f2, g)
+        e = np.exp(omega * T)
+        return (L1 * e + L2) / (e * e - 1.0)
+
+    def _add_swing_task(self, t: float, add_task) -> None:
+        p = self.params
+        m = self.model
+        side = 1 - self.stance
+        X, V, J, jdv = m.sole_spatial(side)
+        p_d, v_d, a_d, yaw_d, yawd_d = self.swing.evaluate(t)
+        pos = X.translation()
+        a_lin = a_d + p.swing_pos.kp * (p_d - pos) + p.swing_pos.kd * (v_d - V[3:])
+        R_d = rot_z(yaw_d)
+        e = rotation_error(R_d, X.rotation().matrix())
+        a_ang = p.swing_rot.kp * e + p.swing_rot.kd * (np.array([0, 0, yawd_d]) - V[:3])
+        # Orientation rows in the desired sole frame: no weight on roll about the sole's x axis
+        # (the foot rolls with the leg's lateral lean: the legs have no ankle roll).
+        Jr = R_d.T @ J[:3]
+        ar = R_d.T @ (a_ang - jdv[:3])
+        w_rot = p.swing_rot.weight
+        add_task(Jr, ar, np.array([0.0, w_rot, w_rot]))
+        add_task(J[3:], a_lin - jdv[3:], np.full(3, p.swing_pos.weight))

@@ -1,0 +1,158 @@
+"""Parameters of the walking controller, loaded from controllers/walking.yaml.
+
+Units: metres, seconds, radians, newtons; gains as stiffness [1/s^2] and damping [1/s] of the
+task-space acceleration laws ``a_d = kp (x_d - x) + kd (v_d - v) + a_ff``.
+
+(No ``from __future__ import annotations`` here: ``yaml_load_typed`` reads the field types.)
+"""
+
+from dataclasses import dataclass, field
+
+from pydrake.common.yaml import yaml_load_typed
+
+from pr2_drake.paths import resolve_user_path
+
+
+@dataclass
+class GaitParams:
+    """Gait timing [s] and footstep limits [m, rad]."""
+
+    single_support: float = 0.35
+    double_support: float = 0.10
+    start_shift: float = 0.40  # weight shift from standing to the first stance foot
+    stop_settle: float = 0.60  # final double support before standing
+    step_width: float = 0.22  # nominal lateral distance between the soles
+    min_step_width: float = 0.15  # feet never get closer than this (lateral, heading frame)
+    max_step_forward: float = 0.25
+    max_step_backward: float = 0.12
+    max_step_lateral: float = 0.10  # extra width per step beyond step_width
+    max_step_yaw: float = 0.30
+    swing_height: float = 0.06
+    swing_land_fraction: float = 0.9  # the swing lands at this fraction of single support
+    touchdown_height: float = 0.004  # sole lower than this above the stance sole = contact
+    touchdown_min_phase: float = 0.9  # swing progress (1 = planned landing) before contact counts
+    late_touchdown: float = 0.15  # declare contact this long after the planned landing
+    com_height: float = 0.54  # CoM height above the stance soles (LIPM height) when walking
+    stand_com_height: float = 0.555  # CoM height when standing
+    height_rate: float = 0.1  # [m/s] how fast the CoM height target moves between the two
+    zmp_offset_x: float = 0.0  # ZMP reference ahead of the sole centre
+    # Foot placement from the capture-point (DCM) error, per axis of the heading frame.
+    dcm_gain: list[float] = field(default_factory=lambda: [1.0, 0.8])
+    dcm_max_adjust: float = 0.2
+    dcm_track_gain: float = 10.0  # [1/s] DCM tracking in double support
+    liftoff_dcm_tolerance: float = 0.02  # [m] DCM error allowed at lift-off
+    max_shift_extension: float = 0.3  # [s] double support may last this much longer
+    ankle_dcm_gain: float = 3.0  # [1/s] single support: DCM feedback through the CoP
+    ankle_zmp_range: float = 0.04  # [m] ... within this distance of the sole centre
+    speed_gain: float = 0.3  # per step: integral correction of the planned speed
+    speed_correction_max: float = 0.15  # [m/s]
+    min_swing_time: float = 0.22  # [s] step timing: a swing may be shortened to this
+    min_remaining_swing: float = 0.1  # [s] ... but never lands sooner than this from now
+    timing_shortfall: float = 0.02  # [m] a target this far out of reach shortens the swing
+    min_double_support: float = 0.04  # [s] double support ends this early if the DCM ...
+    runaway_dcm_error: float = 0.05  # [m] ... is this far from its target and moving away
+    retarget_speed: float = 2.0  # [m/s] fastest motion of the swing target
+    dcm_freeze_phase: float = 0.8  # the swing target stops moving after this swing progress
+    zmp_qy: float = 1.0  # ZmpPlanner weights: ZMP error and CoM acceleration
+    zmp_r: float = 0.001
+
+    @property
+    def swing_time(self) -> float:
+        """Planned time from lift-off to landing [s]."""
+        return self.single_support * self.swing_land_fraction
+
+    @property
+    def step_period(self) -> float:
+        """Planned time from one touchdown to the next [s]."""
+        return self.swing_time + self.double_support
+
+
+@dataclass
+class CommandLimits:
+    """Velocity command limits: out-of-range commands are clipped to these [m/s, rad/s]."""
+
+    vx_max: float = 0.35
+    vx_min: float = -0.25
+    vy_max: float = 0.2
+    yaw_rate_max: float = 0.6
+    accel_max: float = 0.5  # [m/s^2] the command used ramps at most this fast (x, y)
+    yaw_accel_max: float = 1.0  # [rad/s^2]
+    start_threshold: float = 0.01  # |command| above this starts walking (m/s or rad/s)
+    heading_lead_max: float = 0.3  # desired heading never leads the pelvis by more [rad]
+
+
+@dataclass
+class TaskGains:
+    """Stiffness kp [1/s^2], damping kd [1/s] and QP weight of one task."""
+
+    kp: float = 100.0
+    kd: float = 20.0
+    weight: float = 1.0
+
+
+@dataclass
+class QpParams:
+    """Whole-body QP settings."""
+
+    mu: float = 0.7  # friction pyramid coefficient (ground model: 1.0)
+    fz_min: float = 2.0  # [N] per contact point in contact
+    fz_min_single: float = 15.0  # [N] per stance point in single support (keeps the CoP off
+    # the heel/toe edge, so the line foot keeps some yaw friction)
+    fz_max_factor: float = 1.2  # per point, times the robot weight
+    load_ramp: float = 0.03  # [s] ramp of a landing foot's normal-force bound
+    hard_contacts: bool = True  # fully loaded stance soles: hard no-acceleration rows
+    contact_weight: float = 1000.0  # soft no-acceleration cost (soles loading/unloading)
+    contact_kd: float = 20.0
+    vdot_reg: float = 1e-4
+    force_reg: float = 1.0  # on forces in units of force_scale
+    force_scale: float = 100.0
+    max_iter: int = 400
+    time_limit: float = 0.0  # [s] OSQP wall-time cap; 0 = none (a cap breaks determinism)
+    eps_abs: float = 1e-3  # absolute: relative tolerances scale with the big dynamics rows
+    eps_rel: float = 1e-6
+    joint_limit_margin: float = 0.03  # [rad] leg joints stop this far inside their range
+    knee_max: float = -0.15  # [rad] the knee never straightens beyond this (singularity)
+    joint_limit_horizon: float = 0.08  # [s] braking horizon of the joint-limit rows
+    polish: bool = True  # OSQP solution polishing (accurate active set)
+    fail_decay: float = 0.9  # last torques scaled by this after each failed solve
+
+
+@dataclass
+class WalkingParams:
+    """All walking-controller parameters (see controllers/walking.yaml)."""
+
+    control_period: float = 0.004  # [s] QP rate; torques are held in between
+    gait: GaitParams = field(default_factory=GaitParams)
+    limits: CommandLimits = field(default_factory=CommandLimits)
+    qp: QpParams = field(default_factory=QpParams)
+    com_xy: TaskGains = field(default_factory=lambda: TaskGains(30.0, 10.0, 500.0))
+    com_lateral_single_weight: float = 500.0  # CoM task weight sideways in single support
+    com_z: TaskGains = field(default_factory=lambda: TaskGains(100.0, 20.0, 100.0))
+    pelvis: TaskGains = field(default_factory=lambda: TaskGains(100.0, 20.0, 30.0))
+    swing_pos: TaskGains = field(default_factory=lambda: TaskGains(400.0, 40.0, 100.0))
+    swing_rot: TaskGains = field(default_factory=lambda: TaskGains(200.0, 30.0, 50.0))
+    posture_legs: TaskGains = field(default_factory=lambda: TaskGains(20.0, 2.0, 0.05))
+    posture_arms: TaskGains = field(default_factory=lambda: TaskGains(100.0, 20.0, 0.0))
+    # Arms (position mode, posture block): stiffness [Nm/rad] and damping [Nm s/rad].
+    arm_stiffness: float = 60.0
+    arm_damping: float = 3.0
+
+    @staticmethod
+    def load(path: str = "controllers/walking.yaml") -> "WalkingParams":
+        """Read a parameter file (relative paths also looked up in the data root)."""
+        filename = resolve_user_path(path, "walking controller parameters")
+        params = yaml_load_typed(schema=WalkingParams, filename=str(filename))
+        params.check()
+        return params
+
+    def check(self) -> None:
+        """Raise ValueError on inconsistent values."""
+        g = self.gait
+        if self.control_period <= 0:
+            raise ValueError(f"control_period must be > 0, got {self.control_period}")
+        if g.single_support <= 0 or g.double_support <= 0:
+            raise ValueError("gait single_support and double_support must be > 0")
+        if len(g.dcm_gain) != 2:
+            raise ValueError(f"gait.dcm_gain needs 2 values (x, y), got {g.dcm_gain}")
+        if g.min_step_width > g.step_width:
+            raise ValueError("gait.min_step_width must not exceed gait.step_width")

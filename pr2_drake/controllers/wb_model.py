@@ -1,0 +1,122 @@
+"""The walking controller's private robot model: kinematics and dynamics terms per tick.
+
+A robot-only continuous MultibodyPlant with one cached Context. ``update(q, v)`` sets the state
+once; the ``calc_*`` methods return the terms the whole-body QP needs. Frames: W world, B
+base_link, S a sole frame (``l_sole``/``r_sole``, centre of the sole, z up), F a foot body.
+Generalized velocities follow the plant: v = [w_WB (3, in W), v_WB (3, in W), joints...].
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import JacobianWrtVariable
+
+from pr2_drake.ports import N_ARMS, P_WB, Q_ALL, QUAT_WB, V_ALL, V_WB, W_WB
+from pr2_drake.robot.model import BASE_BODY, KuavoMaps, add_kuavo, default_joint_positions
+from pr2_drake.robot.params import load_robot_params
+
+SIDES = ("l", "r")
+
+
+class WholeBodyModel:
+    """Dynamics terms of KUAVO for the controller (see module docstring)."""
+
+    def __init__(self):
+        self.plant = MultibodyPlant(0.0)
+        robot = add_kuavo(self.plant)
+        self.plant.Finalize()
+        self.maps = KuavoMaps.from_plant(self.plant, robot)
+        self.context = self.plant.CreateDefaultContext()
+        self.nq = self.plant.num_positions()
+        self.nv = self.plant.num_velocities()
+        self.mass = self.plant.CalcTotalMass(self.context)
+        self.world = self.plant.world_frame()
+        self.base = self.plant.GetBodyByName(BASE_BODY, robot)
+        self.soles = [self.plant.GetFrameByName(f"{s}_sole", robot) for s in SIDES]
+        self.v_legs = self.maps.v_joints[N_ARMS:]
+        self.v_arms = self.maps.v_joints[:N_ARMS]
+        self.q_legs = self.maps.q_joints[N_ARMS:]
+        foot = load_robot_params().raw["legs"]["foot"]
+        r = float(foot["contact_sphere_radius"])
+        half = float(foot["length"]) / 2 - r
+        # Contact points in the sole frame S (sole level, under the heel and toe spheres).
+        if foot.get("contact_layout", "corners") == "line":
+            self.p_SC = np.array([[-half, half], [0.0, 0.0], [0.0, 0.0]])
+        else:
+            w = float(foot["width"]) / 2 - r
+            self.p_SC = np.array([[-half, -half, half, half], [w, -w, w, -w], [0.0] * 4])
+        self.n_points = self.p_SC.shape[1]
+        self.foot_length = float(foot["length"])
+        self.q = np.zeros(self.nq)
+        self.v = np.zeros(self.nv)
+        self.q_nominal = self.plant.GetPositions(self.context).copy()
+        self.q_nominal[self.maps.q_joints] = default_joint_positions()
+
+    def state_from_ports(self, joint_state: np.ndarray, body_state: np.ndarray):
+        """(q, v) of the plant from the testbed's joint_state (54) and body_state (13)."""
+        q = np.empty(self.nq)
+        v = np.empty(self.nv)
+        m = self.maps
+        quat = np.asarray(body_state[QUAT_WB], dtype=float)
+        q[m.q_base[:4]] = quat / np.linalg.norm(quat)
+        q[m.q_base[4:]] = body_state[P_WB]
+        q[m.q_joints] = joint_state[Q_ALL]
+        v[m.v_base[:3]] = body_state[W_WB]
+        v[m.v_base[3:]] = body_state[V_WB]
+        v[m.v_joints] = joint_state[V_ALL]
+        return q, v
+
+    def update(self, q: np.ndarray, v: np.ndarray) -> None:
+        self.q, self.v = q, v
+        self.plant.SetPositionsAndVelocities(self.context, np.concatenate([q, v]))
+
+    # ---- terms -------------------------------------------------------------------------------
+    def mass_matrix(self) -> np.ndarray:
+        return self.plant.CalcMassMatrix(self.context)
+
+    def bias(self) -> np.ndarray:
+        """h = C(q, v) v - tau_g(q), so that M vdot + h = B u + J^T f."""
+        return (self.plant.CalcBiasTerm(self.context)
+                - self.plant.CalcGravityGeneralizedForces(self.context))
+
+    def com(self):
+        """p_WCcm, v_WCcm, J (3 x nv) and Jdot v (3) of the centre of mass, in W."""
+        ctx, W = self.context, self.world
+        p = self.plant.CalcCenterOfMassPositionInWorld(ctx)
+        J = self.plant.CalcJacobianCenterOfMassTranslationalVelocity(
+            ctx, JacobianWrtVariable.kV, W, W)
+        jdv = self.plant.CalcBiasCenterOfMassTranslationalAcceleration(
+            ctx, JacobianWrtVariable.kV, W, W)
+        return p, J @ self.v, J, jdv
+
+    def sole_pose(self, side: int) -> RigidTransform:
+        """X_WS of sole ``side`` (0 left, 1 right)."""
+        return self.soles[side].CalcPoseInWorld(self.context)
+
+    def sole_spatial(self, side: int):
+        """X_WS, V_WS (6: [w; v] in W), J (6 x nv) and Jdot v (6) of a sole frame."""
+        ctx, W, S = self.context, self.world, self.soles[side]
+        J = self.plant.CalcJacobianSpatialVelocity(
+            ctx, JacobianWrtVariable.kV, S, np.zeros(3), W, W)
+        jdv = self.plant.CalcBiasSpatialAcceleration(
+            ctx, JacobianWrtVariable.kV, S, np.zeros(3), W, W).get_coeffs()
+        return S.CalcPoseInWorld(ctx), J @ self.v, J, jdv
+
+    def contact_points(self, side: int):
+        """J (3n x nv) and Jdot v (3n) of the contact points of one sole, stacked per point."""
+        ctx, W, S = self.context, self.world, self.soles[side]
+        J = self.plant.CalcJacobianTranslationalVelocity(
+            ctx, JacobianWrtVariable.kV, S, self.p_SC, W, W)
+        jdv = self.plant.CalcBiasTranslationalAcceleration(
+            ctx, JacobianWrtVariable.kV, S, self.p_SC, W, W)
+        return J, jdv.T.reshape(-1)
+
+    def contact_heights(self, side: int) -> np.ndarray:
+        """z in W of the contact points of one sole [m]."""
+        X = self.sole_pose(side)
+        return (X.rotation().matrix() @ self.p_SC)[2] + X.translation()[2]
+
+    def base_pose(self) -> RigidTransform:
+        return self.base.EvalPoseInWorld(self.context)

@@ -1,0 +1,256 @@
+"""Whole-body QP: task-space inverse dynamics with contact forces, solved by OSQP.
+
+Decision variables x = [vdot (nv), f (3 per contact point, in W, scaled by 1/force_scale)].
+Constraints (rows of one preallocated sparse matrix, coefficients updated every tick):
+
+- floating-base rows of M vdot + h = J_c^T f (the base is not actuated);
+- leg torques tau = M_l vdot + h_l - J_{c,l}^T f within +- the peak torque;
+- arm rows: the arms are position-controlled elsewhere, so their torques are known (the
+  spring-damper of the posture command) and enter as equalities;
+- per contact point: friction pyramid |f_x|, |f_y| <= mu f_z and f_min <= f_z <= f_max
+  (f_max = 0 for points not in contact);
+- kinematic rows J_k vdot = a_k (e.g. stance soles do not accelerate), each row switched off
+  by infinite bounds when not needed.
+
+The cost is the weighted least-squares sum of the task errors, given as H = sum J^T W J and
+g = -sum J^T W a over vdot, plus small regularisation. The problem is built once; each tick
+updates P, q, A, l, u in place and warm-starts from the previous solution.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import osqp
+import scipy.sparse as sp
+
+from pr2_drake.controllers.walking_params import QpParams
+
+_INF = 1e30  # OSQP_INFTY
+
+
+@dataclass
+class QpResult:
+    """Solution of one tick. ``ok`` is False when the solver failed (then tau is a fallback)."""
+
+    ok: bool
+    tau: np.ndarray  # leg torques [Nm], original leg order
+    vdot: np.ndarray
+    forces: np.ndarray  # contact forces [N], (n_points, 3) in W
+    status: str
+    iterations: int
+
+
+def _csc_pattern(mask: np.ndarray):
+    """CSC index arrays of a boolean mask, and the (row, col) of each stored entry in order."""
+    cols, rows = np.nonzero(mask.T)
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=mask.shape[1]))])
+    return rows, cols, indptr
+
+
+class WholeBodyQp:
+    """The preallocated OSQP problem (see module docstring).
+
+    Args:
+        nv: number of generalized velocities.
+        base_v: indices of the 6 floating-base velocities.
+        leg_v: indices of the leg joint velocities (the actuated rows we output).
+        effort: peak torque per leg joint [Nm].
+        n_points: number of contact points (all feet).
+        params: QP settings.
+    """
+
+    def __init__(self, nv: int, base_v: np.ndarray, leg_v: np.ndarray, effort: np.ndarray,
+                 n_points: int, params: QpParams, arm_v: np.ndarray | None = None,
+                 n_kin: int = 0, box_v: np.ndarray | None = None):
+        self.p = params
+        self.nv = nv
+        self.nf = 3 * n_points
+        self.n = nv + self.nf
+        self.base_v = np.asarray(base_v)
+        self.leg_v = np.asarray(leg_v)
+        self.arm_v = np.zeros(0, dtype=int) if arm_v is None else np.asarray(arm_v)
+        self.effort = np.asarray(effort, dtype=float)
+        self.n_points = n_points
+        n_dyn = len(self.base_v) + len(self.leg_v) + len(self.arm_v)
+        self.n_dyn = n_dyn
+        self.n_kin = n_kin
+        self.box_v = np.zeros(0, dtype=int) if box_v is None else np.asarray(box_v)
+        self.m = n_dyn + 5 * n_points + n_kin + len(self.box_v)
+        s = params.force_scale
+        self.scale = s
+
+        # Constant part of A: friction pyramid and normal-force rows.
+        self.A = np.zeros((self.m, self.n))
+        mu = params.mu
+        for k in range(n_points):
+            r = n_dyn + 5 * k
+            c = nv + 3 * k
+            self.A[r + 0, [c, c + 2]] = [1.0, -mu]
+            self.A[r + 1, [c, c + 2]] = [-1.0, -mu]
+            self.A[r + 2, [c + 1, c + 2]] = [1.0, -mu]
+            self.A[r + 3, [c + 1, c + 2]] = [-1.0, -mu]
+            self.A[r + 4, c + 2] = 1.0
+        a_mask = self.A != 0
+        a_mask[:n_dyn, :] = True
+        self.kin_rows = np.arange(n_dyn + 5 * n_points, n_dyn + 5 * n_points + n_kin)
+        a_mask[self.kin_rows, :nv] = True
+        self.box_rows = np.arange(self.m - len(self.box_v), self.m)
+        self.A[self.box_rows, self.box_v] = 1.0
+        a_mask[self.box_rows, self.box_v] = True
+        self._a_rows, self._a_cols, a_indptr = _csc_pattern(a_mask)
+
+        p_mask = np.zeros((self.n, self.n), dtype=bool)
+        p_mask[:nv, :nv] = np.triu(np.ones((nv, nv), dtype=bool))
+        p_mask[np.arange(nv, self.n), np.arange(nv, self.n)] = True
+        self._p_rows, self._p_cols, p_indptr = _csc_pattern(p_mask)
+
+        self.P = np.zeros((self.n, self.n))
+        # Force regularisation (forces in units of force_scale): spreads the load evenly.
+        self.P[np.arange(nv, self.n), np.arange(nv, self.n)] = params.force_reg
+        self.l = np.full(self.m, -np.inf)
+        self.u = np.full(self.m, np.inf)
+        self.l[:n_dyn] = -1.0
+        self.u[:n_dyn] = 1.0
+        for k in range(n_points):  # pyramid rows: a_i . f <= 0
+            self.u[n_dyn + 5 * k:n_dyn + 5 * k + 4] = 0.0
+        self.q = np.zeros(self.n)
+        self._p_indptr = p_indptr
+        self._a_indptr = a_indptr
+        self._setup()
+        self._diag = np.arange(nv)
+        # Friction/normal rows are always in A0 with value 1 until the first update.
+        self._first = True
+        self.last_tau = np.zeros(len(self.leg_v))
+        self.failures = 0
+
+    def _setup(self) -> None:
+        """(Re)create the OSQP workspace with the fixed sparsity pattern."""
+        params = self.p
+        P0 = sp.csc_matrix((np.ones(len(self._p_rows)), self._p_rows, self._p_indptr),
+                           shape=(self.n, self.n))
+        A0 = sp.csc_matrix((np.ones(len(self._a_rows)), self._a_rows, self._a_indptr),
+                           shape=(self.m, self.n))
+        self.solver = osqp.OSQP()
+        settings = dict(verbose=False, warm_starting=True, polishing=params.polish,
+                        max_iter=params.max_iter, eps_abs=params.eps_abs,
+                        eps_rel=params.eps_rel, adaptive_rho=True, check_termination=10)
+        if params.time_limit > 0:
+            settings["time_limit"] = params.time_limit
+        # Placeholder data (values are overwritten by every solve; only the pattern matters).
+        self.solver.setup(P0, np.zeros(self.n), A0, -np.ones(self.m), np.ones(self.m),
+                          **settings)
+        # The wrapper's update()/solve() add ~0.1 ms of bookkeeping per tick (derivative cache,
+        # info copies): talk to the extension object directly.
+        self._ext = self.solver._solver
+        self._first = True
+
+    def solve(self, M: np.ndarray, h: np.ndarray, Jc: np.ndarray, H: np.ndarray,
+              g: np.ndarray, fz_max: np.ndarray,
+              tau_arms: np.ndarray | None = None,
+              fz_min: np.ndarray | None = None, J_kin: np.ndarray | None = None,
+              a_kin: np.ndarray | None = None,
+              box: tuple[np.ndarray, np.ndarray] | None = None) -> QpResult:
+        """Solve one tick.
+
+        Args:
+            M, h: mass matrix and bias (C v - tau_g) of the plant.
+            Jc: (3 n_points x nv) contact point Jacobians, translational, in W.
+            H, g: cost over vdot (0.5 vdot^T H vdot + g^T vdot), from the tasks.
+            fz_max: (n_points,) upper bound on each normal force [N]; 0 = not in contact.
+            tau_arms: the arm joint torques applied by the arm controller [Nm].
+            fz_min: (n_points,) lower bound on the normal force of points in contact [N]
+                (default: params.fz_min).
+            J_kin, a_kin: (n_kin x nv) and (n_kin,) kinematic rows J_kin vdot = a_kin; rows
+                with a NaN in a_kin are inactive.
+            box: (lower, upper) bounds on vdot[box_v] (e.g. from joint limits).
+        """
+        p, nv, s, nd = self.p, self.nv, self.scale, self.n_dyn
+        A = self.A
+        in_contact = fz_max > 0
+        # Forces of points not in contact leave the dynamics rows (their columns are zeroed,
+        # the sparsity pattern stays), so solver tolerance cannot create phantom support.
+        JcT = Jc.T * (s * np.repeat(in_contact, 3))
+        nb = len(self.base_v)
+        A[:nb, :nv] = M[self.base_v]
+        A[:nb, nv:] = -JcT[self.base_v]
+        nl = nb + len(self.leg_v)
+        A[nb:nl, :nv] = M[self.leg_v]
+        A[nb:nl, nv:] = -JcT[self.leg_v]
+        hb = h[self.base_v]
+        hl = h[self.leg_v]
+        self.l[:nb] = -hb
+        self.u[:nb] = -hb
+        self.l[nb:nl] = -self.effort - hl
+        self.u[nb:nl] = self.effort - hl
+        if nd > nl:
+            A[nl:nd, :nv] = M[self.arm_v]
+            A[nl:nd, nv:] = -JcT[self.arm_v]
+            ta = np.zeros(nd - nl) if tau_arms is None else tau_arms
+            self.l[nl:nd] = ta - h[self.arm_v]
+            self.u[nl:nd] = ta - h[self.arm_v]
+        zr = nd + 5 * np.arange(self.n_points) + 4
+        lo = p.fz_min if fz_min is None else np.minimum(fz_min, 0.5 * fz_max)
+        self.l[zr] = np.where(in_contact, lo / s, 0.0)
+        self.u[zr] = fz_max / s
+        if self.n_kin:
+            if J_kin is None or a_kin is None:
+                J_kin = np.zeros((self.n_kin, nv))
+                a_kin = np.full(self.n_kin, np.nan)
+            A[self.kin_rows, :nv] = J_kin
+            active = np.isfinite(a_kin)
+            self.l[self.kin_rows] = np.where(active, a_kin, -np.inf)
+            self.u[self.kin_rows] = np.where(active, a_kin, np.inf)
+        if len(self.box_v):
+            if box is None:
+                box = (np.full(len(self.box_v), -np.inf), np.full(len(self.box_v), np.inf))
+            self.l[self.box_rows], self.u[self.box_rows] = box
+        P = self.P
+        P[:nv, :nv] = H
+        P[self._diag, self._diag] += p.vdot_reg
+        self.q[:nv] = g
+        Px = P[self._p_rows, self._p_cols]
+        Ax = A[self._a_rows, self._a_cols]
+        l = np.maximum(self.l, -_INF)
+        u = np.minimum(self.u, _INF)
+        if not (np.all(np.isfinite(Px)) and np.all(np.isfinite(Ax)) and np.all(np.isfinite(self.q))
+                and not np.any(np.isnan(l)) and not np.any(np.isnan(u))):
+            return self._fallback("non-finite problem data", 0)
+        ext = self._ext
+        try:
+            ext.update_data_vec(q=self.q, l=l, u=u)
+            ext.update_data_mat(P_x=Px, P_i=None, A_x=Ax, A_i=None)
+            if self._first:
+                f0 = np.zeros(self.nf)
+                f0[2::3] = np.where(in_contact,
+                                    h[self.base_v][5] / max(1, in_contact.sum()) / s, 0.0)
+                ext.warm_start(np.concatenate([np.zeros(nv), f0]), None)
+                self._first = False
+            ext.solve()
+            info = ext.info
+            status = str(info.status)
+            status_val = info.status_val
+            iterations = int(info.iter)
+            x = np.array(ext.solution.x)
+            ok = (status_val in (1, 2) or (status_val in (7, 8) and info.prim_res < 1e-1))
+        except Exception as err:  # noqa: BLE001 - any solver error means: fall back
+            self._setup()
+            return self._fallback(f"solver error: {err}", 0)
+        if ok and x is not None and np.all(np.isfinite(x)):
+            vdot = x[:nv]
+            f = x[nv:] * np.repeat(in_contact, 3)
+            tau = M[self.leg_v] @ vdot + hl - JcT[self.leg_v] @ f
+            tau = np.clip(tau, -self.effort, self.effort)
+            self.last_tau = tau
+            self.failures = 0
+            return QpResult(True, tau, vdot, (f * s).reshape(-1, 3), status, iterations)
+        return self._fallback(status, iterations)
+
+    def _fallback(self, status: str, iterations: int) -> QpResult:
+        """The last torques, decayed: a failed tick never raises."""
+        self.failures += 1
+        self.last_tau = self.last_tau * self.p.fail_decay
+        self._first = True
+        return QpResult(False, self.last_tau.copy(), np.zeros(self.nv),
+                        np.zeros((self.n_points, 3)), status, iterations)
