@@ -75,24 +75,37 @@ class ActuationAdapter(LeafSystem):
             offset += n
         self._state_port = self.DeclareVectorInputPort("robot_state", maps.nq + maps.nv)
         self._n_act = len(maps.actuators)
+        self._tau = np.zeros(self._n_act)
+        for g in self._groups.values():
+            g["neg_limit"] = -g["limit"]
+        self._group_list = list(self._groups.values())
         self.DeclareVectorOutputPort("actuation", self._n_act, self._calc_actuation)
 
     def _calc_actuation(self, context, output: BasicVector) -> None:
-        x = self._state_port.Eval(context)
-        tau = np.zeros(self._n_act)
-        for g in self._groups.values():
+        # Evaluated every physics step: effort-mode torques are clamped once per command
+        # object (see _prepared) and the robot state is read only for position/velocity modes.
+        x = None
+        tau = self._tau
+        tau.fill(0.0)
+        for g in self._group_list:
             try:
                 cmd = g["port"].Eval(context)
             except RuntimeError:  # neither connected nor fixed: zero effort
                 continue
             mode, values, stiffness, damping = self._prepared(cmd, g)
             if mode == "effort":
-                effort = values
-            elif mode == "velocity":
+                tau[g["act"]] = g["cache"][2]
+                continue
+            if x is None:
+                x = self._state_port.Eval(context)
+            if mode == "velocity":
                 effort = damping * (values - x[g["v"]])
             else:
                 effort = stiffness * (values - x[g["q"]]) - damping * x[g["v"]]
-            tau[g["act"]] = np.clip(effort, -g["limit"], g["limit"])
+            limit = g["limit"]
+            np.minimum(effort, limit, out=effort)
+            np.maximum(effort, g["neg_limit"], out=effort)
+            tau[g["act"]] = effort
         output.SetFromVector(tau)
 
     def _prepared(self, cmd: JointGroupCommand, g: dict):
@@ -107,7 +120,8 @@ class ActuationAdapter(LeafSystem):
         stiffness = (g["stiffness"] if cmd.stiffness is None
                      else self._cap(g, cmd.stiffness, "k_max"))
         prepared = (cmd.mode, values, stiffness, damping)
-        g["cache"] = (cmd, prepared)
+        effort = (np.clip(values, -g["limit"], g["limit"]) if cmd.mode == "effort" else None)
+        g["cache"] = (cmd, prepared, effort)
         return prepared
 
     def group_effort(self, cmd: JointGroupCommand, q: np.ndarray, v: np.ndarray,

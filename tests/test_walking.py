@@ -13,6 +13,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pr2_drake.bench.walking import WalkingSim
 from pr2_drake.controllers.walking import WalkingController, obs_to_vectors
 from pr2_drake.controllers.walking_core import COMMAND_PORT, Phase, WalkingCore, check_command
+from pr2_drake.controllers.walking_params import WalkingParams
 from pr2_drake.ports import N_LEGS, P_WB, Q_ARMS, Q_LEGS, QUAT_WB, V_ARMS, V_LEGS, V_WB, W_WB
 from pr2_drake.robot.model import add_kuavo, default_joint_positions, standing_base_pose
 from pr2_drake.robot.params import load_robot_params
@@ -64,8 +65,12 @@ def _check_qp_result(core: WalkingCore, q, v, tau) -> bool:
     return True
 
 
-def test_qp_standing_respects_limits_and_dynamics():
-    core = WalkingCore()
+@pytest.mark.parametrize("solver", ["daqp", "osqp"])
+def test_qp_standing_respects_limits_and_dynamics(solver):
+    params = WalkingParams.load()
+    params.qp.solver = solver
+    core = WalkingCore(params)
+    assert core.qp.use_daqp == (solver == "daqp")
     q, v = _standing_state(core)
     tau = core.update(0.0, q, v, [0.0, 0.0, 0.0])
     assert _check_qp_result(core, q, v, tau)
@@ -102,6 +107,23 @@ def test_qp_failure_falls_back_without_exception():
     res = core.qp.solve(m.mass_matrix(), m.bias(),
                         np.zeros((6 * m.n_points, m.nv)), bad_H, np.zeros(m.nv),
                         np.zeros(2 * m.n_points))
+    assert not res.ok
+    assert np.allclose(res.tau, tau0 * core.params.qp.fail_decay)
+
+
+def test_infeasible_qp_falls_back_to_decayed_torques():
+    """An infeasible tick (a hard row 0 = 1): DAQP finds no solution, nor does the OSQP
+    fallback; the tick returns the last torques, decayed, without raising."""
+    core = WalkingCore()
+    q, v = _standing_state(core)
+    tau0 = core.update(0.0, q, v, [0.0, 0.0, 0.0]).copy()
+    m = core.model
+    n_kin = core.qp.n_kin
+    a_kin = np.full(n_kin, np.nan)
+    a_kin[0] = 1.0
+    res = core.qp.solve(m.mass_matrix(), m.bias(), np.zeros((6 * m.n_points, m.nv)),
+                        np.eye(m.nv), np.zeros(m.nv), np.full(2 * m.n_points, 100.0),
+                        J_kin=np.zeros((n_kin, m.nv)), a_kin=a_kin)
     assert not res.ok
     assert np.allclose(res.tau, tau0 * core.params.qp.fail_decay)
 
@@ -180,3 +202,40 @@ def test_in_process_command_matches_the_action_format():
         walker.command(obs, np.inf, 0.0, 0.0)
     with pytest.raises(ValueError, match="obs"):
         walker.command({"agent": {}}, 0.0, 0.0, 0.0)
+
+
+def test_in_process_command_follows_the_observation_clock():
+    """Called every 1 ms env step with obs["time"], the control law runs once per control
+    period (torques held in between) and the gait clock is the simulation time."""
+    sim = WalkingSim()
+    obs = _obs_from_sim(sim)
+    walker = WalkingController()
+    period = walker.params.control_period
+    updates = []
+    core_update = walker.core.update
+
+    def counting_update(t, *args, **kwargs):
+        updates.append(t)
+        return core_update(t, *args, **kwargs)
+
+    walker.core.update = counting_update
+    dt = 0.001
+    n = 200
+    actions = []
+    for k in range(n):
+        obs["time"] = k * dt
+        actions.append(np.asarray(walker.command(obs, 0.3, 0.0, 0.0)["joint_values"]))
+    steps_per_tick = round(period / dt)
+    assert len(updates) == -(-n // steps_per_tick)  # one law update per control period
+    np.testing.assert_allclose(updates, np.arange(0.0, n * dt - 1e-9, period), atol=1e-12)
+    assert walker.core.t_last == pytest.approx((n - 1) // steps_per_tick * period)
+    # Between updates the action is the held torque of the last update.
+    for k in range(n):
+        np.testing.assert_array_equal(actions[k], actions[k - k % steps_per_tick])
+    # Without a time in the observation: the internal clock advances one period per call.
+    walker.reset()
+    updates.clear()
+    del obs["time"]
+    for _ in range(3):
+        walker.command(obs, 0.0, 0.0, 0.0)
+    np.testing.assert_allclose(updates, [0.0, period, 2 * period])

@@ -20,6 +20,9 @@ In process, without a Diagram (the PR2 platform's walking-server call)::
     walker = WalkingController()
     legs = walker.command(obs, vx, vy, yaw_rate)   # {"ctrl_mode": "effort", ...}
 
+``command`` takes the time from ``obs["time"]`` and runs the control law once per
+``control_period`` (holding the torques in between), so it can be called every env step.
+
 Both paths call the same :meth:`WalkingCore.update`.
 """
 
@@ -120,6 +123,8 @@ class WalkingController(LeafSystem):
             "status", n_status, self._calc_status,
             prerequisites_of_calc={self.discrete_state_ticket(self._state)})
         self._t_in_process = 0.0
+        self._t_last_update: float | None = None
+        self._held: np.ndarray | None = None
 
     # ---- diagram path -------------------------------------------------------------------------
     def _update(self, context, discrete_state) -> None:
@@ -146,24 +151,45 @@ class WalkingController(LeafSystem):
     # ---- in-process path ---------------------------------------------------------------------
     def command(self, obs: Mapping[str, Any], vx: float, vy: float, yaw_rate: float,
                 t: float | None = None) -> dict[str, Any]:
-        """Leg action for one control tick, from a PR2 observation dict.
+        """Leg action from a PR2 observation dict; call it at any rate (e.g. every env step).
+
+        The control law runs at most once per ``control_period`` of simulated time, like the
+        Diagram block: a call less than one period after the last update returns the held
+        torques of that update.
 
         Args:
-            obs: the observation (see :func:`obs_to_vectors`).
+            obs: the observation (see :func:`obs_to_vectors`); its ``"time"`` entry [s], when
+                present, is the simulation time.
             vx, vy, yaw_rate: velocity command in the heading frame [m/s, m/s, rad/s].
-            t: simulation time [s]. None: the previous call's time plus ``control_period``
-                (call once per control period).
+            t: simulation time [s]; overrides ``obs["time"]``. With neither, the previous
+                update's time plus ``control_period`` (then call once per control period).
         Returns:
             ``{"ctrl_mode": "effort", "joint_values": tau (10), "stiffness": None,
             "dampings": None}``.
         """
         cmd = check_command([vx, vy, yaw_rate], COMMAND_PORT)
         joint_state, body_state = obs_to_vectors(obs)
+        if t is None and isinstance(obs, Mapping) and obs.get("time") is not None:
+            t = float(obs["time"])
+            if not np.isfinite(t):
+                raise ValueError(f"obs: time must be finite, got {obs['time']!r}")
         if t is None:
             t = self._t_in_process
-        self._t_in_process = t + self.params.control_period
+        t = float(t)
+        period = self.params.control_period
+        last = self._t_last_update
+        if (last is not None and self._held is not None
+                and last - 1e-9 <= t < last + period - 1e-9):
+            return self._action(self._held)  # within the control period: hold
         q, v = self.core.model.state_from_ports(joint_state, body_state)
-        tau = self.core.update(float(t), q, v, cmd, joint_state[EFFORT_ARMS])
+        tau = self.core.update(t, q, v, cmd, joint_state[EFFORT_ARMS])
+        self._t_last_update = t
+        self._t_in_process = t + period
+        self._held = tau.copy()
+        return self._action(self._held)
+
+    @staticmethod
+    def _action(tau: np.ndarray) -> dict[str, Any]:
         return {"ctrl_mode": "effort", "joint_values": tau.copy(), "stiffness": None,
                 "dampings": None}
 
@@ -171,3 +197,5 @@ class WalkingController(LeafSystem):
         """Forget the gait state and the in-process clock."""
         self.core.reset()
         self._t_in_process = 0.0
+        self._t_last_update = None
+        self._held = None

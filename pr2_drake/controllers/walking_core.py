@@ -29,13 +29,21 @@ Frames: W world (z up, flat ground), soles S (``l_sole``, ``r_sole``), heading f
 from __future__ import annotations
 
 import enum
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from pydrake.math import RotationMatrix
 
 from pr2_drake.controllers.com_plan import ComPlanner, zmp_point
-from pr2_drake.controllers.footsteps import SIDE_SIGN, clamp_to_stance, next_footstep, rot2, wrap
+from pr2_drake.controllers.footsteps import (
+    SIDE_SIGN,
+    FlatTerrain,
+    clamp_to_stance,
+    next_footstep,
+    rot2,
+    wrap,
+)
 from pr2_drake.controllers.swing import SwingTrajectory
 from pr2_drake.controllers.walking_params import WalkingParams
 from pr2_drake.controllers.wb_model import WholeBodyModel
@@ -137,6 +145,9 @@ class WalkingCore:
         self.com_planner = ComPlanner(self.params.gait)
         self.debug = False
         self.debug_info: dict = {}
+        # Foothold heights and landing pitch (set by an agent that knows the terrain).
+        self.terrain = FlatTerrain()
+        self.swing_z_error = 0.0  # [m] swing sole height above its desired height (last tick)
         self.mg = m.mass * GRAVITY
         # Posture task: joints only (rows of the identity on the joint velocities).
         self._joint_v = m.maps.v_joints
@@ -150,6 +161,8 @@ class WalkingCore:
                                  np.full(len(m.v_legs), pp.posture_legs.kd)]
         self._posture_w = np.r_[np.full(n_arms, pp.posture_arms.weight),
                                 np.full(len(m.v_legs), pp.posture_legs.weight)]
+        self._pelvis_v = np.asarray(m.maps.v_base[:3])
+        self._pelvis_w = np.full(3, pp.pelvis.weight)
         self.reset()
 
     # ---- state -------------------------------------------------------------------------------
@@ -286,7 +299,10 @@ class WalkingCore:
         start = self._sole_pose4(swing_side)
         target = clamp_to_stance(self.swing_plan, self.footholds[self.stance], self.stance, g)
         self.swing = SwingTrajectory(t, g.single_support, start, target, g.swing_height,
-                                     g.swing_land_fraction)
+                                     g.swing_land_fraction, g.swing_lift_fraction)
+        self.swing.pitch_start = self._sole_pitch(swing_side)
+        self.swing_z_error = 0.0
+        self._terrain_target()
         self.dcm_offset = self._planned_dcm_offset()
         self._t_retarget = t
         self.phase = Phase.SINGLE
@@ -377,7 +393,7 @@ class WalkingCore:
             self._t_command_change = t
         self._last_command = self.command.copy()
 
-        R_WB = m.base_pose().rotation().matrix()
+        R_WB = m.base_rotation()
         pelvis_yaw = yaw_of(R_WB)
         if self.heading is None:
             self.heading = pelvis_yaw
@@ -418,9 +434,16 @@ class WalkingCore:
             swing_side = 1 - self.stance
             self.swing.evaluate(t)
             progress = self.swing.progress
-            heights = m.contact_heights(swing_side) - self.footholds[self.stance][2]
+            # Swing sole height above the stance sole, or above its target on known terrain.
+            z_ref = (self.footholds[self.stance][2] if type(self.terrain) is FlatTerrain
+                     else self.swing.target[2])
+            heights = m.contact_heights(swing_side) - z_ref
+            blocked = (g.blocked_touchdown_error > 0 and progress >= g.early_touchdown_phase
+                       and self.swing_z_error > g.blocked_touchdown_error
+                       and (heights.min() + z_ref - self.swing.target[2]
+                            < g.early_touchdown_max_height))
             if ((progress >= g.touchdown_min_phase and heights.min() < g.touchdown_height)
-                    or t >= self.swing.landing_time + g.late_touchdown):
+                    or blocked or t >= self.swing.landing_time + g.late_touchdown):
                 self._touchdown(t, com, comd)
             elif progress < g.dcm_freeze_phase:
                 self._adjust_swing_target(t, com, comd)
@@ -439,6 +462,17 @@ class WalkingCore:
             Jw = J * w[:, None]
             H += Jw.T @ J
             gvec -= Jw.T @ a
+
+        H_diag = H.reshape(-1)[::nv + 1]  # view
+
+        def add_selection_task(idx, a, w):
+            """add_task for J = rows idx of the identity (same sums, no matrix products)."""
+            if self.debug:
+                J = np.zeros((len(idx), nv))
+                J[np.arange(len(idx)), idx] = 1.0
+                tasks.append((J, a, w))
+            H_diag[idx] += w
+            gvec[idx] -= w * a
 
         # CoM.
         ground = self._ground_z()
@@ -475,9 +509,7 @@ class WalkingCore:
         w_WB = v[m.maps.v_base[:3]]
         e = rotation_error(rot_z(self.heading), R_WB)
         a_pel = p.pelvis.kp * e - p.pelvis.kd * w_WB
-        J_pel = np.zeros((3, nv))
-        J_pel[:, m.maps.v_base[:3]] = np.eye(3)
-        add_task(J_pel, a_pel, np.full(3, p.pelvis.weight))
+        add_selection_task(self._pelvis_v, a_pel, self._pelvis_w)
 
         # Contacts and swing.
         fz_max = np.zeros(2 * m.n_points)
@@ -518,9 +550,7 @@ class WalkingCore:
         q_j = q[self._joint_q]
         v_j = v[self._joint_v]
         a_post = self._posture_kp * (self.q_nominal_joints - q_j) - self._posture_kd * v_j
-        J_post = np.zeros((len(self._joint_v), nv))
-        J_post[np.arange(len(self._joint_v)), self._joint_v] = 1.0
-        add_task(J_post, a_post, self._posture_w)
+        add_selection_task(self._joint_v, a_post, self._posture_w)
 
         # Arm torques: measured, or the posture block's spring-damper (position mode).
         if tau_arms is None or not np.all(np.isfinite(tau_arms)):
@@ -538,7 +568,8 @@ class WalkingCore:
         a_lo = np.where(bad, mid, a_lo)
         a_hi = np.where(bad, mid, a_hi)
         res = self.qp.solve(m.mass_matrix(), m.bias(), Jc_all, H, gvec, fz_max, tau_arms, fz_min,
-                            J_kin, a_kin, (np.clip(a_lo, -2000, 2000), np.clip(a_hi, -2000, 2000)))
+                            J_kin, a_kin, (np.minimum(np.maximum(a_lo, -2000.0), 2000.0),
+                                           np.minimum(np.maximum(a_hi, -2000.0), 2000.0)))
         if self.debug:
             self.debug_info = dict(a_com=a_com, com_ach=J_com @ res.vdot + jdv_com,
                                    a_pel=a_pel, pel_ach=res.vdot[m.maps.v_base[:3]],
@@ -558,19 +589,19 @@ class WalkingCore:
         P = X.rotation().matrix() @ m.p_SC  # point offsets in W (3 x n)
         n = m.n_points
         E = np.zeros((self.n_kin_foot, 3 * n))
-        E[0:3, 0:3] = np.eye(3)
-        d = P[:, 1] - P[:, 0]
-        d /= np.sqrt(d @ d)
-        e1 = np.array([d[1], -d[0], 0.0])  # d x z
-        n1 = np.sqrt(e1 @ e1)
+        E[0, 0] = E[1, 1] = E[2, 2] = 1.0
+        dx, dy, dz = (P[:, 1] - P[:, 0]).tolist()  # scalar math: cheaper than tiny arrays
+        nd = math.sqrt(dx * dx + dy * dy + dz * dz)
+        dx, dy, dz = dx / nd, dy / nd, dz / nd
+        d = np.array([dx, dy, dz])
+        e1x, e1y, e1z = dy, -dx, 0.0  # d x z
+        n1 = math.sqrt(e1x * e1x + e1y * e1y)
         if n1 < 1e-6:
-            e1 = np.array([0.0, d[2], -d[1]])  # d x x
-            n1 = np.sqrt(e1 @ e1)
-        e1 /= n1
-        e2 = np.array([d[1] * e1[2] - d[2] * e1[1], d[2] * e1[0] - d[0] * e1[2],
-                       d[0] * e1[1] - d[1] * e1[0]])
-        E[3, 3:6] = e1
-        E[4, 3:6] = e2
+            e1x, e1y, e1z = 0.0, dz, -dy  # d x x
+            n1 = math.sqrt(e1y * e1y + e1z * e1z)
+        e1x, e1y, e1z = e1x / n1, e1y / n1, e1z / n1
+        E[3, 3:6] = (e1x, e1y, e1z)
+        E[4, 3:6] = (dy * e1z - dz * e1y, dz * e1x - dx * e1z, dx * e1y - dy * e1x)
         if self.n_kin_foot > 5:
             k = 2 if n < 4 else 3  # a point off the first line
             nrm = np.cross(d, P[:, k] - P[:, 0])
@@ -630,6 +661,22 @@ class WalkingCore:
             step *= max_step / n
         self.swing.target[:2] += step
         self._t_retarget = t
+        self._terrain_target()
+
+    def _sole_pitch(self, side: int) -> float:
+        """Pitch [rad] of a sole about its y axis (negative = toe up)."""
+        R = self.model.sole_pose(side).rotation().matrix()
+        return float(np.arctan2(-R[2, 0], np.hypot(R[0, 0], R[1, 0])))
+
+    def _terrain_target(self) -> None:
+        """Swing target height and landing pitch from the terrain model and the stance sole."""
+        if type(self.terrain) is FlatTerrain:
+            return
+        stance = self.footholds[self.stance]
+        slope = -np.tan(self._sole_pitch(self.stance))
+        z, pitch = self.terrain.foothold(stance, slope, self.swing.target)
+        self.swing.target[2] = z
+        self.swing.pitch_target = pitch
 
     def _planned_dcm_offset(self) -> np.ndarray:
         """Periodic DCM offset b (xy, W) at the switch onto the planned swing target."""
@@ -654,9 +701,16 @@ class WalkingCore:
         p_d, v_d, a_d, yaw_d, yawd_d = self.swing.evaluate(t)
         pos = X.translation()
         a_lin = a_d + p.swing_pos.kp * (p_d - pos) + p.swing_pos.kd * (v_d - V[3:])
+        pitch_d, pitchd_d = self.swing.pitch()
         R_d = rot_z(yaw_d)
+        if pitch_d != 0.0:  # landing pitched on known terrain
+            R_d = R_d @ RotationMatrix.MakeYRotation(pitch_d).matrix()
         e = rotation_error(R_d, X.rotation().matrix())
-        a_ang = p.swing_rot.kp * e + p.swing_rot.kd * (np.array([0, 0, yawd_d]) - V[:3])
+        w_d = np.array([-np.sin(yaw_d) * pitchd_d, np.cos(yaw_d) * pitchd_d, yawd_d])
+        a_ang = p.swing_rot.kp * e + p.swing_rot.kd * (w_d - V[:3])
+        # Blocked descent (early contact): above the curve and no longer moving down.
+        self.swing_z_error = (float(pos[2] - p_d[2])
+                              if v_d[2] <= 0.0 and V[5] > 0.5 * min(v_d[2], -0.1) else 0.0)
         # Orientation rows in the desired sole frame: no weight on roll about the sole's x axis
         # (the foot rolls with the leg's lateral lean: the legs have no ankle roll).
         Jr = R_d.T @ J[:3]

@@ -29,9 +29,18 @@ class GaitParams:
     max_step_yaw: float = 0.30
     swing_height: float = 0.06
     swing_land_fraction: float = 0.9  # the swing lands at this fraction of single support
-    touchdown_height: float = 0.004  # sole lower than this above the stance sole = contact
+    swing_lift_fraction: float = 0.0  # horizontal swing motion starts/ends this much of the
+    # swing phase after lift-off / before landing (vertical lift and landing)
+    touchdown_height: float = 0.004  # sole lower than this above the stance sole (above its
+    # target when the core has a terrain model) = contact
     touchdown_min_phase: float = 0.9  # swing progress (1 = planned landing) before contact counts
     late_touchdown: float = 0.15  # declare contact this long after the planned landing
+    # Early contact (rough or sloped ground): after this swing progress, a descending swing
+    # sole held more than blocked_touchdown_error above its desired height has landed
+    # (0 = off).
+    early_touchdown_phase: float = 0.6
+    blocked_touchdown_error: float = 0.0
+    early_touchdown_max_height: float = 0.04  # [m] ... and is at most this above its target
     com_height: float = 0.54  # CoM height above the stance soles (LIPM height) when walking
     stand_com_height: float = 0.555  # CoM height when standing
     height_rate: float = 0.1  # [m/s] how fast the CoM height target moves between the two
@@ -115,6 +124,8 @@ class QpParams:
     joint_limit_horizon: float = 0.08  # [s] braking horizon of the joint-limit rows
     polish: bool = True  # OSQP solution polishing (accurate active set)
     fail_decay: float = 0.9  # last torques scaled by this after each failed solve
+    solver: str = "daqp"  # "daqp" (dense active set, exact, ~0.05 ms; OSQP as its fallback)
+    # or "osqp" (the settings above from max_iter to polish apply to OSQP only)
 
 
 @dataclass
@@ -142,6 +153,16 @@ class WalkingParams:
         """Read a parameter file (relative paths also looked up in the data root)."""
         filename = resolve_user_path(path, "walking controller parameters")
         params = yaml_load_typed(schema=WalkingParams, filename=str(filename))
+        params.check()
+        return params
+
+    def with_overrides(self, path: str) -> "WalkingParams":
+        """A copy of these parameters with the entries of a (partial) YAML file replacing them."""
+        import copy
+
+        filename = resolve_user_path(path, "walking controller parameter overrides")
+        params = yaml_load_typed(schema=WalkingParams, filename=str(filename),
+                                 defaults=copy.deepcopy(self))
         params.check()
         return params
 
