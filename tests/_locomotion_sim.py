@@ -173,3 +173,20 @@ def roll_about_sole(X_WB: RigidTransform, p_W_pivot: np.ndarray, angle: float) -
     R = RigidTransform(RollPitchYaw(angle, 0, 0), [0, 0, 0])
     T = RigidTransform(p_W_pivot)
     return T @ R @ T.inverse() @ X_WB
+
+
+def assert_starts_in_region(spec, n_seeds: int = 100) -> list[StartPose]:
+    """Draw ``n_seeds`` starts: each inside the start rectangle, its heading within the task's
+    noise of nominal (exactly nominal when the task has none), all distinct. Returns them."""
+    cx, cy = spec.start_region["center"]
+    dx, dy = spec.start_region["size"]
+    starts = [spec.sample_start(np.random.default_rng(s)) for s in range(n_seeds)]
+    for s in starts:
+        assert abs(s.x - cx) <= dx / 2 and abs(s.y - cy) <= dy / 2
+        offset = np.degrees(s.yaw) - spec.nominal_heading_deg
+        if spec.heading_noise_deg == 0:
+            assert s.yaw == np.radians(spec.nominal_heading_deg)
+        else:
+            assert abs(offset) <= spec.heading_noise_deg + 1e-9
+    assert len({(s.x, s.y) for s in starts}) == n_seeds
+    return starts

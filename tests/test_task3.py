@@ -6,7 +6,7 @@ import pytest
 from pr2_drake.scene import StartPose
 from pr2_drake.tasks import get_task
 from pr2_drake.tasks.base import EpisodeStatus
-from tests._locomotion_sim import TaskSim, roll_about_sole, scene_geometry
+from tests._locomotion_sim import TaskSim, assert_starts_in_region, roll_about_sole, scene_geometry
 
 SPEC = get_task(3).spec
 BAR = SPEC.scene["bar"]
@@ -22,13 +22,7 @@ def test_spec_matches_tasks_md():
 
 
 def test_start_poses_in_region_without_heading_noise_and_seeded():
-    cx, cy = SPEC.start_region["center"]
-    dx, dy = SPEC.start_region["size"]
-    starts = [SPEC.sample_start(np.random.default_rng(s)) for s in range(100)]
-    for s in starts:
-        assert abs(s.x - cx) <= dx / 2 and abs(s.y - cy) <= dy / 2
-        assert s.yaw == np.radians(SPEC.nominal_heading_deg)
-    assert len({(s.x, s.y) for s in starts}) == 100
+    assert_starts_in_region(SPEC)
     _, a, *_ = scene_geometry(3, seed=5)
     _, b, *_ = scene_geometry(3, seed=5)
     _, c, *_ = scene_geometry(3, seed=6)

@@ -4,7 +4,12 @@ import numpy as np
 import pytest
 
 from pr2_drake.tasks import get_task
-from tests._locomotion_sim import TaskSim, min_distance_to_terrain, scene_geometry
+from tests._locomotion_sim import (
+    TaskSim,
+    assert_starts_in_region,
+    min_distance_to_terrain,
+    scene_geometry,
+)
 
 SPEC = get_task(4).spec
 SLOPE = SPEC.scene["slope"]
@@ -17,14 +22,7 @@ def test_spec_matches_tasks_md():
 
 
 def test_start_poses_in_region_bounded_heading_and_seeded():
-    cx, cy = SPEC.start_region["center"]
-    dx, dy = SPEC.start_region["size"]
-    yaws = []
-    for seed in range(100):
-        s = SPEC.sample_start(np.random.default_rng(seed))
-        assert abs(s.x - cx) <= dx / 2 and abs(s.y - cy) <= dy / 2
-        assert abs(np.degrees(s.yaw) - SPEC.nominal_heading_deg) <= 30.0 + 1e-9
-        yaws.append(s.yaw)
+    yaws = [s.yaw for s in assert_starts_in_region(SPEC)]
     assert np.ptp(np.degrees(yaws)) > 40.0
     _, a, *_ = scene_geometry(4, seed=1)
     _, b, *_ = scene_geometry(4, seed=1)

@@ -4,7 +4,12 @@ import numpy as np
 import pytest
 
 from pr2_drake.tasks import get_task
-from tests._locomotion_sim import TaskSim, min_distance_to_terrain, scene_geometry
+from tests._locomotion_sim import (
+    TaskSim,
+    assert_starts_in_region,
+    min_distance_to_terrain,
+    scene_geometry,
+)
 
 SPEC = get_task(5).spec
 STEPS = SPEC.scene["steps"]
@@ -21,13 +26,7 @@ def test_spec_matches_tasks_md():
 
 
 def test_start_poses_in_region_without_heading_noise_and_seeded():
-    cx, cy = SPEC.start_region["center"]
-    dx, dy = SPEC.start_region["size"]
-    starts = [SPEC.sample_start(np.random.default_rng(s)) for s in range(100)]
-    for s in starts:
-        assert abs(s.x - cx) <= dx / 2 and abs(s.y - cy) <= dy / 2
-        assert s.yaw == np.radians(SPEC.nominal_heading_deg)
-    assert len({(s.x, s.y) for s in starts}) == 100
+    assert_starts_in_region(SPEC)
     _, a, *_ = scene_geometry(5, seed=8)
     _, b, *_ = scene_geometry(5, seed=8)
     _, c, *_ = scene_geometry(5, seed=9)
