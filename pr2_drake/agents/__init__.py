@@ -21,10 +21,10 @@ from typing import Any
 # they land.
 DEFAULT_AGENTS: dict[int | None, str] = {
     None: "pr2_drake.controllers.standing:StandingController",
-    1: "pr2_drake.controllers.standing:StandingController",
+    1: "pr2_drake.agents.walk_to_goal:RockyRoadAgent",
     2: "pr2_drake.controllers.standing:StandingController",
     3: "pr2_drake.controllers.standing:StandingController",
-    4: "pr2_drake.controllers.standing:StandingController",
+    4: "pr2_drake.agents.walk_to_goal:SlopeAgent",
     5: "pr2_drake.controllers.standing:StandingController",
     6: "pr2_drake.controllers.standing:StandingController",
 }

@@ -6,6 +6,16 @@ points the body at the goal, walks forward, slows down near it and stops inside 
 the testbed's port names, so ``pr2-drake run --task 1 --agent
 pr2_drake.agents.walk_to_goal:WalkToGoalAgent`` wires it by name. It uses only the public
 observation (``body_state``, ``joint_state``) and the task's ``goal_center`` prior.
+
+Task reference agents (the defaults of ``pr2-drake run --task 1`` and ``--task 4``):
+
+- :class:`RockyRoadAgent` (task 1): unknown stones: swing soles aim below the stance sole and
+  touch down when their descent is blocked (contact inferred from kinematics), slower walking
+  (controllers/walking_rough.yaml, controllers/goal_planner_rough.yaml).
+- :class:`SlopeAgent` (task 4): footholds on the incline from the ``slope_angle_deg`` prior and
+  the measured pitch of the stance sole, capped at the goal height; soles land pitched like the
+  incline; the first step onto the ramp is caught as an early (blocked) touchdown
+  (controllers/walking_slope.yaml).
 """
 
 
@@ -97,21 +107,32 @@ class WalkToGoalAgent(Diagram):
         walking_params: walking-controller YAML (default controllers/walking.yaml).
     """
 
+    #: Default goal-planner YAML and walking-parameter overrides (subclasses change them).
+    PLANNER_PARAMS = "controllers/goal_planner.yaml"
+    WALKING_OVERRIDES: str | None = None
+
     def __init__(self, priors: dict[str, Any], params: str | None = None,
                  walking_params: str | None = None):
         super().__init__()
         from pr2_drake.controllers.posture import ArmPosture
         from pr2_drake.controllers.walking import WalkingController
+        from pr2_drake.controllers.walking_params import WalkingParams
 
         goal = priors.get("goal_center", priors.get("goal"))
         if goal is None:
             raise ValueError(
                 f"WalkToGoalAgent needs a 'goal_center' prior; the task gives {sorted(priors)}"
             )
-        planner_params = GoalPlannerParams.load(params or "controllers/goal_planner.yaml")
+        planner_params = GoalPlannerParams.load(params or self.PLANNER_PARAMS)
+        wparams = WalkingParams.load(walking_params or "controllers/walking.yaml")
+        if self.WALKING_OVERRIDES:
+            wparams = wparams.with_overrides(self.WALKING_OVERRIDES)
         builder = DiagramBuilder()
         planner = builder.AddNamedSystem("planner", GoalVelocityPlanner(goal, planner_params))
-        walker = builder.AddNamedSystem("walker", WalkingController(walking_params))
+        walker = builder.AddNamedSystem("walker", WalkingController(wparams))
+        terrain = self.make_terrain(priors, np.asarray(goal, dtype=float))
+        if terrain is not None:
+            walker.core.terrain = terrain
         arms = builder.AddNamedSystem("arm_posture", ArmPosture())
         builder.ExportInput(walker.GetInputPort("joint_state"), "joint_state")
         body = builder.ExportInput(walker.GetInputPort("body_state"), "body_state")
@@ -122,3 +143,40 @@ class WalkToGoalAgent(Diagram):
         builder.ExportOutput(arms.GetOutputPort("arms_command"), "arms_command")
         builder.ExportOutput(planner.GetOutputPort("velocity_command"), "velocity_command")
         builder.BuildInto(self)
+
+    def make_terrain(self, priors: dict[str, Any], goal: np.ndarray):
+        """The walking controller's terrain model (None: flat, the controller's default)."""
+        return None
+
+
+class SlopeAgent(WalkToGoalAgent):
+    """Task 4 reference agent: walks up an incline of known angle (``slope_angle_deg`` prior)
+    to ``goal_center``. Footholds on the incline follow the plane the stance sole stands on,
+    capped at the goal height (the plateau); swing soles land pitched like the incline."""
+
+    PLANNER_PARAMS = "controllers/goal_planner_slope.yaml"
+    WALKING_OVERRIDES = "controllers/walking_slope.yaml"
+
+    def make_terrain(self, priors, goal):
+        from pr2_drake.controllers.footsteps import SlopeTerrain
+
+        angle = priors.get("slope_angle_deg")
+        if angle is None:
+            raise ValueError(f"SlopeAgent needs a 'slope_angle_deg' prior; got {sorted(priors)}")
+        z_top = float(goal[2]) if goal.shape[0] > 2 else np.inf
+        return SlopeTerrain(math.radians(float(angle)), goal, z_top)
+
+
+class RockyRoadAgent(WalkToGoalAgent):
+    """Task 1 reference agent: walks over unknown low stones to ``goal_center``: higher, slower
+    steps, touchdown detected from contact (a blocked swing sole) rather than the plan."""
+
+    PLANNER_PARAMS = "controllers/goal_planner_rough.yaml"
+    WALKING_OVERRIDES = "controllers/walking_rough.yaml"
+    #: [m] swing soles aim this far below the stance sole (stone heights vary by 2 cm).
+    LANDING_DROP = 0.025
+
+    def make_terrain(self, priors, goal):
+        from pr2_drake.controllers.footsteps import RoughTerrain
+
+        return RoughTerrain(self.LANDING_DROP)

@@ -70,3 +70,66 @@ def clamp_to_stance(target: np.ndarray, stance: np.ndarray, stance_side: int,
     dyaw = wrap(target[3] - stance[3])
     out[3] = stance[3] + np.clip(dyaw, -gait.max_step_yaw - 0.1, gait.max_step_yaw + 0.1)
     return out
+
+
+class FlatTerrain:
+    """Terrain model of the footstep planner: a swing sole lands at the stance sole's height,
+    level. Subclasses estimate the height and pitch of a foothold from what the robot knows
+    (its stance sole, the task's priors)."""
+
+    def foothold(self, stance: np.ndarray, stance_slope: float,
+                 target: np.ndarray) -> tuple[float, float]:
+        """Height [m, W] and pitch [rad, rotation about the sole's y axis; negative = toe up]
+        of a sole landing at ``target`` (x, y, z, yaw).
+
+        Args:
+            stance: the stance sole (x, y, z, yaw), measured.
+            stance_slope: rise of the stance sole per metre along its x axis (measured).
+        """
+        return float(stance[2]), 0.0
+
+
+class SlopeTerrain(FlatTerrain):
+    """A planar incline of known angle between a lower and an upper level (the task-4 prior).
+
+    The slope is taken to rise towards ``goal`` (xy, W).
+    The stance sole is on the incline when it is pitched by more than ``on_slope_fraction`` of
+    the angle; then the foothold height is the stance height plus the rise of the plane, capped
+    at ``z_top`` (the plateau, e.g. the goal height), and the landing pitch is the plane's.
+    Off the incline the foothold is level at the stance height (the first step onto the ramp
+    lands early and is caught by touchdown detection).
+    """
+
+    def __init__(self, angle: float, goal, z_top: float, on_slope_fraction: float = 0.5):
+        self.goal = np.asarray(goal, dtype=float)[:2]
+        self.tan = float(np.tan(angle))
+        self.z_top = float(z_top)
+        self.on_slope_fraction = on_slope_fraction
+
+    def foothold(self, stance, stance_slope, target):
+        z0 = float(stance[2])
+        if abs(stance_slope) < self.on_slope_fraction * self.tan:
+            return z0, 0.0
+        d = self.goal - np.asarray(stance[:2])
+        n = float(np.linalg.norm(d))
+        if n < 1e-6:
+            return z0, 0.0
+        gradient = np.sign(stance_slope) * self.tan * d / n
+        # The incline the stance sole is on rises along its x axis; along the target's axis:
+        axis = np.array([np.cos(target[3]), np.sin(target[3])])
+        z = z0 + float(gradient @ (np.asarray(target[:2]) - stance[:2]))
+        if z >= self.z_top - 0.01:
+            return min(z, self.z_top), 0.0
+        return z, -float(np.arctan(gradient @ axis))
+
+
+class RoughTerrain(FlatTerrain):
+    """Unknown low obstacles (stones): the swing sole aims ``drop`` below the stance sole, level,
+    so that it meets the ground while still descending (early rather than late), and the
+    touchdown is detected from contact (a blocked descent)."""
+
+    def __init__(self, drop: float):
+        self.drop = float(drop)
+
+    def foothold(self, stance, stance_slope, target):
+        return float(stance[2]) - self.drop, 0.0

@@ -39,16 +39,22 @@ class SwingTrajectory:
     MAX_DESCENT = 0.03  # [m] below the target height
 
     def __init__(self, t0: float, duration: float, start: np.ndarray, target: np.ndarray,
-                 height: float, land_fraction: float):
+                 height: float, land_fraction: float, lift_fraction: float = 0.0):
         self.t0 = t0
         self.duration = duration
         self.t_land = land_fraction * duration  # landing time after t0 [s]
         self.start = np.array(start, dtype=float)
         self.target = np.array(target, dtype=float)
         self.height = height
+        # Horizontal motion waits for this fraction of the swing phase after lift-off (lift
+        # vertically: a toe next to a stone's edge does not catch on it).
+        self.lift_fraction = float(np.clip(lift_fraction, 0.0, 0.5))
         self._tau = 0.0
         self._rate = 1.0 / self.t_land
         self._t = t0
+        # Sole pitch [rad] about its y axis at lift-off and landing (terrain-aware landing).
+        self.pitch_start = 0.0
+        self.pitch_target = 0.0
 
     def phase(self, t: float) -> float:
         """Fraction of the planned single support elapsed (can exceed 1 when landing late)."""
@@ -63,6 +69,12 @@ class SwingTrajectory:
     def landing_time(self) -> float:
         """Absolute planned landing time [s]."""
         return self.t0 + self.t_land
+
+    def pitch(self) -> tuple[float, float]:
+        """Desired sole pitch [rad] and pitch rate [rad/s] at the last evaluation."""
+        s, ds, _ = _quintic(self._tau)
+        d = self.pitch_target - self.pitch_start
+        return self.pitch_start + s * d, ds * self._rate * d
 
     def retime(self, t: float, landing_time: float) -> None:
         """Bring the landing forward to ``landing_time`` (absolute) from time t."""
@@ -83,16 +95,23 @@ class SwingTrajectory:
         """p, v, a (3 each, W) and yaw, yaw rate of the desired sole at time t."""
         self._advance(t)
         tau, r = self._tau, self._rate
-        s, ds, dds = _quintic(tau)
+        f = self.lift_fraction
+        k = 1.0 / (1.0 - f)
+        s, ds, dds = _quintic((tau - f) * k)  # horizontal (and yaw) blend
+        ds, dds = ds * k, dds * k * k
+        sz, dsz, ddsz = _quintic(tau)  # height blend between the two ends
         d = self.target[:3] - self.start[:3]
         p = self.start[:3] + s * d
         v = ds * r * d
         a = dds * r * r * d
+        p[2] = self.start[2] + sz * d[2]
+        v[2] = dsz * r * d[2]
+        a[2] = ddsz * r * r * d[2]
         dyaw = wrap(self.target[3] - self.start[3])
         yaw = self.start[3] + s * dyaw
         yawd = ds * r * dyaw
         # Height bump on top of the straight blend.
-        top = max(self.start[2], self.target[2]) - self.start[2] - s * d[2]
+        top = max(self.start[2], self.target[2]) - self.start[2] - sz * d[2]
         bump = self.height + max(top, 0.0)
         p[2] += bump * 64 * tau**3 * (1 - tau) ** 3
         v[2] += bump * 64 * 3 * tau**2 * (1 - tau) ** 2 * (1 - 2 * tau) * r
