@@ -5,7 +5,8 @@ position and yaw follow a quintic blend of tau (zero velocity and acceleration a
 the height adds a bump ``64 h tau^3 (1 - tau)^3`` (apex h at mid swing, smooth ends). The
 target may move during the swing (foot placement feedback) and the landing may be brought
 forward (step timing): the phase rate then changes so that tau reaches 1 at the new landing
-time. After the planned landing the sole keeps descending slowly until contact is detected.
+time. After the planned landing the sole reference keeps descending (``descent_speed``) until
+contact is detected.
 """
 
 from __future__ import annotations
@@ -35,11 +36,9 @@ class SwingTrajectory:
         land_fraction: part of the single support after which the sole is at the target.
     """
 
-    DESCENT_SPEED = 0.15  # [m/s] after the planned landing, until contact
-    MAX_DESCENT = 0.03  # [m] below the target height
-
     def __init__(self, t0: float, duration: float, start: np.ndarray, target: np.ndarray,
-                 height: float, land_fraction: float, lift_fraction: float = 0.0):
+                 height: float, land_fraction: float, lift_fraction: float = 0.0,
+                 descent_speed: float = 0.5, max_descent: float = 0.05):
         self.t0 = t0
         self.duration = duration
         self.t_land = land_fraction * duration  # landing time after t0 [s]
@@ -55,6 +54,10 @@ class SwingTrajectory:
         # Sole pitch [rad] about its y axis at lift-off and landing (terrain-aware landing).
         self.pitch_start = 0.0
         self.pitch_target = 0.0
+        # After the planned landing the reference keeps descending at descent_speed [m/s] to
+        # max_descent [m] below the target, until contact (a late landing is a short one).
+        self.descent_speed = descent_speed
+        self.max_descent = max_descent
 
     def phase(self, t: float) -> float:
         """Fraction of the planned single support elapsed (can exceed 1 when landing late)."""
@@ -118,7 +121,7 @@ class SwingTrajectory:
         a[2] += bump * 64 * 6 * tau * (1 - tau) * (1 - 5 * tau + 5 * tau * tau) * r * r
         late = (t - self.t0) - self.t_land
         if tau >= 1.0 and late > 0:
-            p[2] = self.target[2] - min(self.DESCENT_SPEED * late, self.MAX_DESCENT)
-            v[2] = -self.DESCENT_SPEED if self.DESCENT_SPEED * late < self.MAX_DESCENT else 0.0
+            p[2] = self.target[2] - min(self.descent_speed * late, self.max_descent)
+            v[2] = -self.descent_speed if self.descent_speed * late < self.max_descent else 0.0
             a[2] = 0.0
         return p, v, a, yaw, yawd

@@ -44,6 +44,7 @@ from pr2_drake.controllers.footsteps import (
     rot2,
     wrap,
 )
+from pr2_drake.controllers.step_adjust import choose_step
 from pr2_drake.controllers.swing import SwingTrajectory
 from pr2_drake.controllers.walking_params import WalkingParams
 from pr2_drake.controllers.wb_model import WholeBodyModel
@@ -299,7 +300,8 @@ class WalkingCore:
         start = self._sole_pose4(swing_side)
         target = clamp_to_stance(self.swing_plan, self.footholds[self.stance], self.stance, g)
         self.swing = SwingTrajectory(t, g.single_support, start, target, g.swing_height,
-                                     g.swing_land_fraction, g.swing_lift_fraction)
+                                     g.swing_land_fraction, g.swing_lift_fraction,
+                                     g.late_descent_speed, g.late_descent_max)
         self.swing.pitch_start = self._sole_pitch(swing_side)
         self.swing_z_error = 0.0
         self._terrain_target()
@@ -609,50 +611,36 @@ class WalkingCore:
         return E
 
     def _adjust_swing_target(self, t: float, com, comd) -> None:
-        """Capture-point (DCM) stepping: place the swing sole so that, at the next ZMP switch,
-        the DCM has the offset from the new sole that the planned steps need.
+        """Capture-point (DCM) stepping: choose where and when the swing sole lands so that, at
+        the next ZMP switch, the DCM has the offset from the new sole that the planned steps
+        need (:func:`pr2_drake.controllers.step_adjust.choose_step`).
 
-        With the ZMP on the stance sole, the DCM xi = c + cdot / omega diverges as
-        xi(t) = p + (xi0 - p) exp(omega t). For the planned next two steps L1, L2 of period T,
-        the periodic offset at a switch is b = (L1 exp(omega T) + L2) / (exp(2 omega T) - 1).
-        The target is xi_predicted - b, blended with the planned footstep by ``dcm_gain``.
+        For the planned next two steps L1, L2 of period T, that periodic offset is
+        b = (L1 exp(omega T) + L2) / (exp(2 omega T) - 1) (``self.dcm_offset``).
         """
         g = self.params.gait
         omega = np.sqrt(GRAVITY / g.com_height)
-        p_st = zmp_point(self.footholds[self.stance], g)
+        stance = self.footholds[self.stance]
+        p_st = zmp_point(stance, g)
         xi = com[:2] + comd[:2] / omega
         plan = self.swing_plan
-        R = rot2(self.heading)
-        gain = np.array(g.dcm_gain)
-
-        def adjustment(t_land: float) -> np.ndarray:
-            t_left = max(t_land - t, 0.0)
-            xi_pred = p_st + (xi - p_st) * np.exp(omega * (t_left + 0.5 * g.double_support))
-            return gain * (R.T @ (xi_pred - self.dcm_offset - zmp_point(plan, g)))
-
-        stance = self.footholds[self.stance]
-
-        def place(e: np.ndarray):
-            """Reachable target for adjustment e, and how far it falls short [m]."""
-            n = float(np.linalg.norm(e))
-            e_lim = e * (g.dcm_max_adjust / n) if n > g.dcm_max_adjust else e
-            want = plan.copy()
-            want[:2] += R @ e
-            got = plan.copy()
-            got[:2] += R @ e_lim
-            got = clamp_to_stance(got, stance, self.stance, g)
-            return got, float(np.linalg.norm(want[:2] - got[:2]))
-
-        target, short = place(adjustment(self.swing.landing_time))
-        if short > g.timing_shortfall and g.min_swing_time < g.swing_time:
-            # Step timing: a step that cannot reach far enough lands sooner instead, so the
-            # DCM has less time to run away.
-            sooner = max(t + g.min_remaining_swing, self.swing.t0 + g.min_swing_time)
-            if sooner < self.swing.landing_time - 1e-3:
-                target_sooner, short_sooner = place(adjustment(sooner))
-                if short_sooner < short:
-                    self.swing.retime(t, sooner)
-                    target = target_sooner
+        sw = self.swing
+        t_now_land = sw.landing_time
+        # Landing-time window; when it is empty (the swing is nearly over) only the current
+        # landing time remains.
+        planned = sw.t0 + g.swing_time
+        earliest = max(t + g.min_remaining_swing, sw.t0 + g.min_swing_time)
+        latest = planned + g.max_swing_extension
+        # The ZMP reference offset of the landing sole (zmp_point) moves with its target.
+        offset = zmp_point(plan, g) - plan[:2]
+        choice = choose_step(t, xi, p_st, stance, self.stance, zmp_point(plan, g),
+                             self.dcm_offset, self.heading, earliest, planned, latest,
+                             t_now_land, g, omega)
+        if abs(choice.landing_time - t_now_land) > 1e-6:
+            sw.retime(t, choice.landing_time)
+        target = plan.copy()
+        target[:2] = choice.target_xy - offset
+        target[3] = clamp_to_stance(plan, stance, self.stance, g)[3]
         # Move the swing target at a bounded speed so the swing curve stays smooth.
         step = target[:2] - self.swing.target[:2]
         max_step = g.retarget_speed * max(t - self._t_retarget, 0.0)

@@ -35,19 +35,32 @@ class GaitParams:
     # target when the core has a terrain model) = contact
     touchdown_min_phase: float = 0.9  # swing progress (1 = planned landing) before contact counts
     late_touchdown: float = 0.15  # declare contact this long after the planned landing
+    late_descent_speed: float = 0.5  # [m/s] the sole reference keeps descending after the
+    late_descent_max: float = 0.05  # [m] planned landing, to this far below the target
     # Early contact (rough or sloped ground): after this swing progress, a descending swing
     # sole held more than blocked_touchdown_error above its desired height has landed
     # (0 = off).
     early_touchdown_phase: float = 0.6
     blocked_touchdown_error: float = 0.0
     early_touchdown_max_height: float = 0.04  # [m] ... and is at most this above its target
-    com_height: float = 0.54  # CoM height above the stance soles (LIPM height) when walking
+    com_height: float = 0.50  # CoM height above the stance soles (LIPM height) when walking
     stand_com_height: float = 0.555  # CoM height when standing
     height_rate: float = 0.1  # [m/s] how fast the CoM height target moves between the two
     zmp_offset_x: float = 0.0  # ZMP reference ahead of the sole centre
-    # Foot placement from the capture-point (DCM) error, per axis of the heading frame.
-    dcm_gain: list[float] = field(default_factory=lambda: [1.0, 0.8])
-    dcm_max_adjust: float = 0.2
+    # Foot placement from the capture-point (DCM) error, per axis of the heading frame
+    # (1 = the DCM lands at the planned offset from the new sole; see step_adjust.py).
+    dcm_gain: list[float] = field(default_factory=lambda: [1.0, 1.0])
+    recovery_min_step_width: float = 0.10  # [m] step adjustment may go this narrow
+    # Step adjustment cost (step_adjust.choose_step): unreachable part of the ideal step along
+    # the stance sole, outwards (DCM outside the new sole) and inwards [1/m^2], landing time
+    # off the plan [1/s^2], and a fixed cost of changing the landing time.
+    step_cost_x: float = 1000.0
+    step_cost_outward: float = 10000.0
+    step_cost_inward: float = 300.0
+    step_cost_timing: float = 100.0
+    retime_penalty: float = 0.05
+    timing_grid: float = 0.01  # [s] landing times searched on this grid
+    max_swing_extension: float = 0.05  # [s] a swing may land this much later than planned
     dcm_track_gain: float = 10.0  # [1/s] DCM tracking in double support
     liftoff_dcm_tolerance: float = 0.02  # [m] DCM error allowed at lift-off
     max_shift_extension: float = 0.3  # [s] double support may last this much longer
@@ -55,12 +68,11 @@ class GaitParams:
     ankle_zmp_range: float = 0.04  # [m] ... within this distance of the sole centre
     speed_gain: float = 0.3  # per step: integral correction of the planned speed
     speed_correction_max: float = 0.15  # [m/s]
-    min_swing_time: float = 0.22  # [s] step timing: a swing may be shortened to this
-    min_remaining_swing: float = 0.1  # [s] ... but never lands sooner than this from now
-    timing_shortfall: float = 0.02  # [m] a target this far out of reach shortens the swing
+    min_swing_time: float = 0.18  # [s] step timing: a swing may be shortened to this
+    min_remaining_swing: float = 0.08  # [s] ... but never lands sooner than this from now
     min_double_support: float = 0.04  # [s] double support ends this early if the DCM ...
     runaway_dcm_error: float = 0.05  # [m] ... is this far from its target and moving away
-    retarget_speed: float = 2.0  # [m/s] fastest motion of the swing target
+    retarget_speed: float = 3.0  # [m/s] fastest motion of the swing target
     dcm_freeze_phase: float = 0.8  # the swing target stops moving after this swing progress
     zmp_qy: float = 1.0  # ZmpPlanner weights: ZMP error and CoM acceleration
     zmp_r: float = 0.001
@@ -140,7 +152,7 @@ class WalkingParams:
     com_lateral_single_weight: float = 500.0  # CoM task weight sideways in single support
     com_z: TaskGains = field(default_factory=lambda: TaskGains(100.0, 20.0, 100.0))
     pelvis: TaskGains = field(default_factory=lambda: TaskGains(100.0, 20.0, 30.0))
-    swing_pos: TaskGains = field(default_factory=lambda: TaskGains(400.0, 40.0, 100.0))
+    swing_pos: TaskGains = field(default_factory=lambda: TaskGains(400.0, 40.0, 1000.0))
     swing_rot: TaskGains = field(default_factory=lambda: TaskGains(200.0, 30.0, 50.0))
     posture_legs: TaskGains = field(default_factory=lambda: TaskGains(20.0, 2.0, 0.05))
     posture_arms: TaskGains = field(default_factory=lambda: TaskGains(100.0, 20.0, 0.0))
@@ -175,5 +187,7 @@ class WalkingParams:
             raise ValueError("gait single_support and double_support must be > 0")
         if len(g.dcm_gain) != 2:
             raise ValueError(f"gait.dcm_gain needs 2 values (x, y), got {g.dcm_gain}")
+        if not 0.0 < g.recovery_min_step_width <= g.min_step_width:
+            raise ValueError("gait.recovery_min_step_width must be in (0, min_step_width]")
         if g.min_step_width > g.step_width:
             raise ValueError("gait.min_step_width must not exceed gait.step_width")
