@@ -12,8 +12,10 @@ The design follows from that:
 
 - Footsteps come from the command (:mod:`footsteps`), then move with the divergent component of
   motion (DCM, capture point) xi = c + cdot / omega: the swing sole goes where the DCM will be
-  at the next ZMP switch, minus the periodic offset the next planned steps need. A step that
-  cannot reach far enough lands sooner (step timing).
+  at the next ZMP switch, minus the periodic offset the next planned steps need. Where and
+  when it lands are chosen together (:mod:`step_adjust`): a step that cannot reach far enough
+  lands sooner, and after a push towards the stance leg the swing sole lands close beside it
+  (never crossing) so that the next step can catch the DCM.
 - Double support moves the DCM to where the next step needs it (DCM tracking with the ZMP
   inside the support region), and lasts longer while that still helps.
 - Single support keeps the ZMP on the stance sole; along the sole an ankle term tracks the DCM.
