@@ -24,11 +24,12 @@ Positions are xy in W [m], times absolute [s].
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from pr2_drake.controllers.footsteps import SIDE_SIGN, rot2
+from pr2_drake.controllers.footsteps import SIDE_SIGN
 from pr2_drake.controllers.walking_params import GaitParams
 
 
@@ -66,31 +67,53 @@ def choose_step(t: float, xi: np.ndarray, p_st: np.ndarray, stance: np.ndarray, 
             ``retime_penalty`` more (no dithering between nearly equal times).
     """
     g = gait
+    # Candidate landing times: the window on the timing grid, and the current time. (Plain
+    # Python on purpose: a few dozen scalars every control tick are cheaper than numpy calls.)
     if t_latest >= t_earliest:
-        n = int(round((t_latest - t_earliest) / max(g.timing_grid, 1e-3))) + 1
-        times = np.unique(np.r_[np.linspace(t_earliest, t_latest, max(n, 2)), t_current])
+        n = max(int(round((t_latest - t_earliest) / max(g.timing_grid, 1e-3))) + 1, 2)
+        step = (t_latest - t_earliest) / (n - 1)
+        times = [t_earliest + i * step for i in range(n)] + [t_current]
     else:
-        times = np.array([t_current])
-    growth = np.exp(omega * (times - t + 0.5 * g.double_support))
-    xi_pred = p_st[None, :] + (xi - p_st)[None, :] * growth[:, None]  # (n, 2)
-    # Ideal landing points, blended with the plan per heading-frame axis.
-    R_h = rot2(heading)
-    gain = np.asarray(g.dcm_gain, dtype=float)
-    e_H = (xi_pred - b[None, :] - plan_xy[None, :]) @ R_h  # rows: R_h^T (u* - plan)
-    u_star = plan_xy[None, :] + (e_H * gain[None, :]) @ R_h.T
-    # Into the stance sole's frame, clip to the reachable box.
-    R_s = rot2(stance[3])
-    d = (u_star - stance[None, :2]) @ R_s  # (n, 2): x, y in the stance frame
-    s = SIDE_SIGN[1 - stance_side]
+        times = [t_current]
+    px, py = float(p_st[0]), float(p_st[1])
+    ex, ey = float(xi[0]) - px, float(xi[1]) - py
+    bx, by = float(b[0]), float(b[1])
+    gx, gy = float(g.dcm_gain[0]), float(g.dcm_gain[1])
+    blend = gx != 1.0 or gy != 1.0
+    ch, sh = math.cos(heading), math.sin(heading)
+    cs, ss = math.cos(stance[3]), math.sin(stance[3])
+    sx, sy = float(stance[0]), float(stance[1])
+    sgn = SIDE_SIGN[1 - stance_side]
     x_min, x_max, w_min, w_max = reach_box(g)
-    x = np.clip(d[:, 0], x_min, x_max)
-    lat = np.clip(s * d[:, 1], w_min, w_max)
-    r_x = d[:, 0] - x
-    r_out = s * d[:, 1] - lat
-    cost = (g.step_cost_x * r_x**2 + g.step_cost_outward * np.maximum(r_out, 0.0) ** 2
-            + g.step_cost_inward * np.minimum(r_out, 0.0) ** 2
-            + g.step_cost_timing * (times - t_planned) ** 2
-            + np.where(np.abs(times - t_current) > 1e-6, g.retime_penalty, 0.0))
-    k = int(np.argmin(cost))
-    target = stance[:2] + R_s @ np.array([x[k], s * lat[k]])
-    return StepChoice(target, float(times[k]), float(cost[k]), np.array([r_x[k], r_out[k]]))
+    half_ds = 0.5 * g.double_support
+    w_x, w_out, w_in = g.step_cost_x, g.step_cost_outward, g.step_cost_inward
+    w_t, penalty = g.step_cost_timing, g.retime_penalty
+    p0x, p0y = float(plan_xy[0]), float(plan_xy[1])
+    exp = math.exp
+    best = None
+    for T in times:
+        growth = exp(omega * (T - t + half_ds))
+        # Ideal landing point u* = xi(T) - b, blended with the plan per heading-frame axis.
+        ux = px + ex * growth - bx
+        uy = py + ey * growth - by
+        if blend:
+            dx_, dy_ = ux - p0x, uy - p0y
+            hx = (ch * dx_ + sh * dy_) * gx
+            hy = (-sh * dx_ + ch * dy_) * gy
+            ux = p0x + ch * hx - sh * hy
+            uy = p0y + sh * hx + ch * hy
+        # In the stance sole's frame, clipped to the reachable box.
+        rx, ry = ux - sx, uy - sy
+        dx = cs * rx + ss * ry
+        dlat = sgn * (-ss * rx + cs * ry)
+        x = min(max(dx, x_min), x_max)
+        lat = min(max(dlat, w_min), w_max)
+        r_x, r_out = dx - x, dlat - lat
+        cost = (w_x * r_x * r_x + (w_out if r_out > 0.0 else w_in) * r_out * r_out
+                + w_t * (T - t_planned) ** 2 + (penalty if abs(T - t_current) > 1e-6 else 0.0))
+        if best is None or cost < best[0]:
+            best = (cost, T, x, lat, r_x, r_out)
+    cost, T, x, lat, r_x, r_out = best
+    y = sgn * lat
+    target = np.array([sx + cs * x - ss * y, sy + ss * x + cs * y])
+    return StepChoice(target, T, cost, np.array([r_x, r_out]))

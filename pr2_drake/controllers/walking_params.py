@@ -92,7 +92,7 @@ class GaitParams:
 class CommandLimits:
     """Velocity command limits: out-of-range commands are clipped to these [m/s, rad/s]."""
 
-    vx_max: float = 0.35
+    vx_max: float = 0.45
     vx_min: float = -0.25
     vy_max: float = 0.2
     yaw_rate_max: float = 0.6
