@@ -319,6 +319,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--push-phases", type=int, default=4,
                         help="walking pushes: instants per gait cycle")
     args = parser.parse_args(argv)
+    if args.push_phases < 1 or args.repeats < 1:
+        parser.error("--push-phases and --repeats must be at least 1")
     q = args.quick
     rows = []
     walk_t = 8.0 if q else 20.0
