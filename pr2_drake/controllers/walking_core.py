@@ -633,18 +633,16 @@ class WalkingCore:
         planned = sw.t0 + g.swing_time
         earliest = max(t + g.min_remaining_swing, sw.t0 + g.min_swing_time)
         latest = planned + g.max_swing_extension
-        # The ZMP reference offset of the landing sole (zmp_point) moves with its target.
-        offset = zmp_point(plan, g) - plan[:2]
-        choice = choose_step(t, xi, p_st, stance, self.stance, zmp_point(plan, g),
-                             self.dcm_offset, self.heading, earliest, planned, latest,
-                             t_now_land, g, omega)
+        # The ZMP reference offset of the landing sole (zmp_point) moves with its target; the
+        # target's yaw stays as set at lift-off.
+        plan_zmp = zmp_point(plan, g)
+        choice = choose_step(t, xi, p_st, stance, self.stance, plan_zmp, self.dcm_offset,
+                             self.heading, earliest, planned, latest, t_now_land, g, omega)
         if abs(choice.landing_time - t_now_land) > 1e-6:
             sw.retime(t, choice.landing_time)
-        target = plan.copy()
-        target[:2] = choice.target_xy - offset
-        target[3] = clamp_to_stance(plan, stance, self.stance, g)[3]
+        target_xy = choice.target_xy - (plan_zmp - plan[:2])
         # Move the swing target at a bounded speed so the swing curve stays smooth.
-        step = target[:2] - self.swing.target[:2]
+        step = target_xy - self.swing.target[:2]
         max_step = g.retarget_speed * max(t - self._t_retarget, 0.0)
         n = np.linalg.norm(step)
         if n > max_step:
