@@ -18,6 +18,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, LeafSystem
 
+from pr2_drake.lifetime import weak_calc
 from pr2_drake.ports import JointGroupCommand, validate_command
 from pr2_drake.robot.model import KuavoMaps
 from pr2_drake.robot.params import GROUPS, RobotParams
@@ -41,6 +42,8 @@ class ActuationAdapter(LeafSystem):
         gain_limits: {group: (max_stiffness, max_damping)} per-joint arrays (original order)
             that keep the explicit spring-damper stable; None = no cap.
     """
+
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
     def __init__(
         self,
@@ -79,7 +82,7 @@ class ActuationAdapter(LeafSystem):
         for g in self._groups.values():
             g["neg_limit"] = -g["limit"]
         self._group_list = list(self._groups.values())
-        self.DeclareVectorOutputPort("actuation", self._n_act, self._calc_actuation)
+        self.DeclareVectorOutputPort("actuation", self._n_act, weak_calc(self._calc_actuation))
 
     def _calc_actuation(self, context, output: BasicVector) -> None:
         # Evaluated every physics step: effort-mode torques are clamped once per command
@@ -88,10 +91,10 @@ class ActuationAdapter(LeafSystem):
         tau = self._tau
         tau.fill(0.0)
         for g in self._group_list:
-            try:
-                cmd = g["port"].Eval(context)
-            except RuntimeError:  # neither connected nor fixed: zero effort
+            port = g["port"]
+            if not port.HasValue(context):  # neither connected nor fixed: zero effort
                 continue
+            cmd = port.Eval(context)
             mode, values, stiffness, damping = self._prepared(cmd, g)
             if mode == "effort":
                 tau[g["act"]] = g["cache"][2]

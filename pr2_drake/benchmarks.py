@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import cProfile
+import math
 import pstats
 import statistics
 import subprocess
@@ -24,24 +25,15 @@ import time
 
 
 def _standing_diagram(task, seed: int = 0, camera=None):
-    from pydrake.systems.analysis import Simulator
-    from pydrake.systems.framework import DiagramBuilder
-
+    """The standing controller's episode of ``task``; returns (simulator, testbed)."""
     from pr2_drake.controllers.standing import StandingController
-    from pr2_drake.episode import connect_by_name
-    from pr2_drake.testbed import Testbed, TestbedConfig
+    from pr2_drake.episode import Episode, wire_system
+    from pr2_drake.scenario import Scenario
 
-    config = TestbedConfig(task=task, seed=seed)
-    if camera is not None:
-        config.camera = camera
-    builder = DiagramBuilder()
-    testbed = builder.AddSystem(Testbed(config))
-    controller = builder.AddSystem(StandingController())
-    connect_by_name(builder, testbed, controller)
-    diagram = builder.Build()
-    simulator = Simulator(diagram)
-    simulator.Initialize()
-    return simulator, testbed
+    episode = Episode(Scenario(task=task, seed=seed, camera=camera, seconds=math.inf),
+                      wire_system(StandingController()))
+    episode.simulator.Initialize()
+    return episode.simulator, episode.testbed
 
 
 def bench_sim(argv: list[str]) -> int:

@@ -1,7 +1,8 @@
 """The head RGB-D camera: a Drake RgbdSensor on RenderEngineVtk, sampled at its own rate."""
 
-from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,8 +32,9 @@ class CameraSettings:
 
     Attributes:
         enabled: add the camera (tasks that need no camera leave it off: it costs time).
-        width, height: image size in pixels.
-        fps: frames per second in simulated time; the sensor renders only at this rate.
+        width, height: image size in pixels, from 8x8 to 3840x2160 (4K UHD).
+        fps: frames per second in simulated time, at most 1000; the sensor renders only at
+            this rate.
         fov_y_deg: vertical field of view [deg].
         quality: "low" (no shadows), "medium" (shadow maps), "high" (large shadow maps and
             ambient occlusion). Lower quality renders faster.
@@ -49,16 +51,48 @@ class CameraSettings:
     z_far: float = 30.0
 
     def validate(self) -> None:
-        if self.quality not in QUALITIES:
+        """Raise ValueError naming the first bad field (``camera.<field>``) and its bounds:
+        width in [8, 3840] and height in [8, 2160] pixels (integers; 3840x2160, 4K UHD, is the
+        largest resolution supported), 0 < fps <= 1000 per simulated second, quality one of
+        :data:`QUALITIES`, 0 < fov_y_deg < 170, finite 0 < z_near < z_far."""
+        if not isinstance(self.enabled, (bool, np.bool_)):
+            raise ValueError(f"camera.enabled must be a bool, got {self.enabled!r}")
+        if not isinstance(self.quality, str) or self.quality not in QUALITIES:
             raise ValueError(f"camera.quality must be one of {QUALITIES}, got {self.quality!r}")
-        if self.width < 8 or self.height < 8:
-            raise ValueError(f"camera size must be at least 8x8, got {self.width}x{self.height}")
-        if not self.fps > 0:
-            raise ValueError(f"camera.fps must be positive, got {self.fps}")
-        if not 0 < self.fov_y_deg < 170:
-            raise ValueError(f"camera.fov_y_deg must be in (0, 170), got {self.fov_y_deg}")
-        if not 0 < self.z_near < self.z_far:
-            raise ValueError("camera depth range needs 0 < z_near < z_far")
+        for name, upper in (("width", MAX_WIDTH), ("height", MAX_HEIGHT)):
+            value = getattr(self, name)
+            if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+                raise ValueError(f"camera.{name} must be an integer number of pixels, "
+                                 f"got {value!r}")
+            if not MIN_SIZE <= value <= upper:
+                raise ValueError(
+                    f"camera.{name} must be in [{MIN_SIZE}, {upper}] pixels (images from "
+                    f"{MIN_SIZE}x{MIN_SIZE} to {MAX_WIDTH}x{MAX_HEIGHT}), got {value}")
+        _real_in("fps", self.fps, 0.0, MAX_FPS, "frames per simulated second", upper_open=False)
+        _real_in("fov_y_deg", self.fov_y_deg, 0.0, 170.0, "deg")
+        _real_in("z_near", self.z_near, 0.0, math.inf, "m")
+        _real_in("z_far", self.z_far, 0.0, math.inf, "m")
+        if not self.z_near < self.z_far:
+            raise ValueError(f"camera.z_near must be below camera.z_far, got z_near "
+                             f"{self.z_near} m, z_far {self.z_far} m")
+
+
+MIN_SIZE = 8
+MAX_WIDTH, MAX_HEIGHT = 3840, 2160  # 4K UHD
+MAX_FPS = 1000.0  # 1 kHz, the default physics rate: far beyond any real camera's frame rate
+
+
+def _real_in(name: str, value, lower: float, upper: float, unit: str,
+             upper_open: bool = True) -> None:
+    """Raise ValueError unless ``value`` is a finite real number with lower < value < upper
+    (value <= upper when not ``upper_open``)."""
+    ok = (isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+          and math.isfinite(value) and lower < value
+          and (value < upper if upper_open else value <= upper))
+    if not ok:
+        bound = "" if math.isinf(upper) else (f" {'<' if upper_open else '<='} {upper:g}")
+        raise ValueError(f"camera.{name} must be a finite number with {lower:g} < {name}{bound} "
+                         f"[{unit}], got {value!r}")
 
 
 @dataclass
@@ -105,6 +139,8 @@ class RgbdSampler(LeafSystem):
     Input ports: ``color_image`` (ImageRgba8U), ``depth_image_32f`` (ImageDepth32F).
     Output port: ``rgbd`` (RgbdFrame), no direct feedthrough.
     """
+
+    __slots__ = ()  # see pr2_drake.lifetime: lets the collector free the diagram
 
     def __init__(self, width: int, height: int, fps: float):
         super().__init__()

@@ -1,8 +1,13 @@
 """The ``pr2-drake`` command line.
 
-    pr2-drake run [--task N] [--seed S] [--agent module:Class] [--seconds T] [--meshcat]
-                  [--record replay.html] [--report report.json]
-    pr2-drake eval --task N --seeds A:B [--agent module:Class] [--jobs J] [--out results.json]
+    pr2-drake run [SCENARIO.yaml | DIAGRAM.yaml] [--task N] [--seed S] [--agent module:Class]
+                  [--seconds T] [--set key=value ...] [--meshcat] [--record replay.html]
+                  [--report report.json]
+    pr2-drake eval [SCENARIO.yaml] --task N --seeds A:B [--agent module:Class] [--jobs J]
+                   [--out results.json]
+
+Every episode is a :class:`pr2_drake.scenario.Scenario`: the YAML file, then the flags, then
+the ``--set`` overrides.
     pr2-drake bench {sim,camera,startup,walking} [...]
     pr2-drake tasks
 
@@ -18,12 +23,17 @@ import time
 from typing import Any
 
 
-def _camera_settings(args):
+def _camera_settings(args, current):
+    """The scenario's camera after the --camera, --camera-fps and --render-quality flags."""
     if args.camera is None and args.camera_fps is None and args.render_quality is None:
-        return None
+        return current
+    from dataclasses import replace
+
     from pr2_drake.camera import CameraSettings
 
-    cam = CameraSettings(enabled=args.camera != "off")
+    cam = replace(current) if current is not None else CameraSettings(enabled=True)
+    if args.camera is not None:
+        cam.enabled = args.camera != "off"
     if args.camera not in (None, "on", "off"):
         try:
             w, h = (int(v) for v in args.camera.lower().split("x"))
@@ -38,13 +48,61 @@ def _camera_settings(args):
 
 
 def _add_episode_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("file", nargs="?", metavar="YAML",
+                   help="a scenario YAML (see scenarios/) or a diagram YAML (see diagrams/)")
     p.add_argument("--task", help="task id 1..6 or name (default: flat ground, no referee)")
-    p.add_argument("--agent", help="agent as module:Class (default: the task's built-in agent)")
+    p.add_argument("--agent", help="agent as module:Class or path/to/file.py:Class "
+                                   "(default: the task's built-in agent)")
     p.add_argument("--seconds", type=float, help="simulated seconds (default: the task's limit)")
-    p.add_argument("--time-step", type=float, default=0.001, help="physics step [s]")
+    p.add_argument("--time-step", type=float, help="physics step [s] (default 0.001)")
     p.add_argument("--camera", help="head camera: on, off or WIDTHxHEIGHT (default: the task's)")
     p.add_argument("--camera-fps", type=float, help="camera frames per simulated second")
     p.add_argument("--render-quality", choices=("low", "medium", "high"))
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scenario field, e.g. --set plant.time_step=0.002 "
+                        "(repeatable; applied last)")
+
+
+def scenario_from_args(args, seed: int | None = None):
+    """The scenario of a ``run``/``eval`` command line: the YAML file (if a scenario), then
+    the flags, then the ``--set`` overrides."""
+    from pr2_drake.scenario import Scenario, load_scenario
+
+    scenario, diagram = Scenario(), None
+    if args.file:
+        if _is_diagram_yaml(args.file):
+            diagram = args.file
+        else:
+            scenario = load_scenario(args.file)
+    changes = {}
+    for flag, key in (("task", "task"), ("agent", "agent"), ("seconds", "seconds")):
+        if getattr(args, flag) is not None:
+            changes[key] = getattr(args, flag)
+    if diagram is not None:
+        changes["diagram"] = diagram
+    if seed is not None:
+        changes["seed"] = seed
+    from dataclasses import replace
+
+    scenario = replace(scenario, **changes)
+    if args.time_step is not None:
+        scenario.plant = replace(scenario.plant, time_step=args.time_step)
+    scenario.camera = _camera_settings(args, scenario.camera)
+    return load_scenario(None, overrides=args.set, defaults=scenario)
+
+
+def _is_diagram_yaml(path: str) -> bool:
+    """Whether a YAML file is a diagram (it has ``blocks``) rather than a scenario."""
+    from pydrake.common.yaml import yaml_load_file
+
+    from pr2_drake.paths import resolve_user_path
+
+    file = resolve_user_path(path, "scenario or diagram YAML")
+    try:
+        raw = yaml_load_file(str(file))
+    except Exception as e:
+        raise ValueError(f"{path}: not valid YAML: {' '.join(str(e).split())}") from None
+    return isinstance(raw, dict) and ("blocks" in raw or "connect" in raw)
 
 
 def _print_report(report: dict[str, Any], out=sys.stdout) -> None:
@@ -77,19 +135,17 @@ def _print_report(report: dict[str, Any], out=sys.stdout) -> None:
 def cmd_run(args) -> int:
     from pydrake.geometry import Meshcat
 
-    from pr2_drake.episode import EpisodeOptions, run_episode
+    from pr2_drake.episode import check_output_path, run_episode
 
+    scenario = scenario_from_args(args, seed=args.seed)
+    check_output_path(args.report, "--report")
+    check_output_path(args.record, "--record")
     meshcat = None
     if args.meshcat:
         meshcat = Meshcat()
         print(f"Meshcat: {meshcat.web_url()}", flush=True)
-    opts = EpisodeOptions(
-        task=args.task, seed=args.seed, agent=args.agent, diagram=args.diagram,
-        seconds=args.seconds,
-        time_step=args.time_step, camera=_camera_settings(args), meshcat=meshcat,
-        record=args.record, progress=None if args.quiet else sys.stderr,
-    )
-    report = run_episode(opts)
+    report = run_episode(scenario, meshcat=meshcat, record=args.record,
+                         progress=None if args.quiet else sys.stderr)
     _print_report(report)
     if args.record:
         print(f"  replay written to {args.record}")
@@ -119,12 +175,10 @@ def _parse_seeds(text: str) -> list[int]:
     return seeds
 
 
-def _eval_one(args_tuple):
-    task, seed, agent, seconds, time_step = args_tuple
-    from pr2_drake.episode import EpisodeOptions, run_episode
+def _eval_one(scenario):
+    from pr2_drake.episode import run_episode
 
-    return run_episode(EpisodeOptions(task=task, seed=seed, agent=agent, seconds=seconds,
-                                      time_step=time_step))
+    return run_episode(scenario)
 
 
 def summarize(reports: list[dict[str, Any]]) -> dict[str, Any]:
@@ -154,12 +208,21 @@ def summarize(reports: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def cmd_eval(args) -> int:
-    from pr2_drake.tasks import task_id
+    from dataclasses import replace
 
-    task = task_id(args.task)
+    from pr2_drake.agents import load_agent_class
+    from pr2_drake.episode import agent_spec, check_output_path
+
     seeds = _parse_seeds(args.seeds)
+    base = scenario_from_args(args)
+    if base.task is None:
+        raise SystemExit("pr2-drake eval: --task is required (or a scenario file with a task)")
+    check_output_path(args.out, "--out")
+    if not base.diagram:
+        load_agent_class(agent_spec(base))  # a bad spec fails here, once, not in every worker
+    task = base.task
     jobs = max(1, args.jobs)
-    work = [(task, s, args.agent, args.seconds, args.time_step) for s in seeds]
+    work = [replace(base, seed=s) for s in seeds]
     reports: list[dict[str, Any]] = []
     start = time.perf_counter()
     print(f"evaluating task {task} over {len(seeds)} seeds with {jobs} job(s)", file=sys.stderr)
@@ -219,10 +282,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="pr2-drake", description="Drake-native PR2 humanoid testbed")
     sub = parser.add_subparsers(dest="command", required=True)
 
-    p = sub.add_parser("run", help="run one scored episode (or a diagram YAML)")
-    p.add_argument("diagram", nargs="?", help="optional diagram YAML (see diagrams/)")
+    p = sub.add_parser("run", help="run one scored episode (a scenario or diagram YAML, or flags)")
     _add_episode_args(p)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, help="episode seed (default 0)")
     p.add_argument("--meshcat", action="store_true", help="start Meshcat and print its URL")
     p.add_argument("--no-wait", action="store_true", help="with --meshcat: exit when done")
     p.add_argument("--record", metavar="HTML", help="write a self-contained replay")
@@ -249,8 +311,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    if args.command == "eval" and args.task is None:
-        raise SystemExit("pr2-drake eval: --task is required")
     try:
         return args.func(args)
     except (ValueError, FileNotFoundError) as e:

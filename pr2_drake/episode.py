@@ -1,24 +1,36 @@
-"""Run one scored episode: testbed + agent, simulated until the referee ends it.
+"""One episode: a scenario built into a diagram, simulated, judged and reported.
 
-Used by ``pr2-drake run`` and ``pr2-drake eval``; usable from Python::
+This is the one place where the testbed, the agent's blocks and the ``Simulator`` are put
+together (:class:`Episode`), where an episode's end is decided (:meth:`Episode.judge`: the
+referee, the time limit, divergence) and where faults are named (:meth:`Episode.advance_to`).
+``pr2-drake run`` and ``eval``, :class:`pr2_drake.env.Env`, the gymnasium wrapper, the
+benchmarks and the tests all go through it::
 
-    from pr2_drake.episode import EpisodeOptions, run_episode
-    report = run_episode(EpisodeOptions(task=1, seed=7))
+    from pr2_drake.episode import run_episode
+    from pr2_drake.scenario import Scenario
+    report = run_episode(Scenario(task=1, seed=7))
+
+Every end has a name (``report["termination"]``) and keeps the points earned before it:
+``completed``, ``fell``, ``left_region``, ``timeout``, ``diverged`` (non-finite state, Drake's
+own failure, or a state beyond :class:`pr2_drake.scenario.EpisodeLimits`), ``invalid_action``
+(the action failed validation; the message names the key), ``agent_error`` (the agent raised;
+its exception's type and message) and ``agent_exit`` (the agent called ``sys.exit``).
 """
 
 from __future__ import annotations
 
+import gc
 import math
-import sys
 import time
-from dataclasses import dataclass, field, replace
+import warnings
+from dataclasses import replace
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any, Callable, TextIO
 
 import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.framework import DiagramBuilder, System
 
 from pr2_drake.agents import (
     DEFAULT_AGENTS,
@@ -27,54 +39,271 @@ from pr2_drake.agents import (
     is_system_agent,
     load_agent_class,
 )
-from pr2_drake.camera import CameraSettings
 from pr2_drake.ports import P_WB
+from pr2_drake.scenario import Scenario, ScenarioError
 from pr2_drake.tasks.base import EpisodeStatus
-from pr2_drake.testbed import Testbed, TestbedConfig
+from pr2_drake.testbed import Testbed
 
-FREE_RUN_SECONDS = 10.0  # default length of a run without a task [s]
-FREE_FALL_HEIGHT = 0.35  # without a task: fallen below this base height [m]
+# Source files of the testbed's own blocks: a fault raised there is the testbed's verdict on
+# its input (a ValueError: invalid_action), not the agent's error.
+_PACKAGE = Path(__file__).resolve().parent
+_TESTBED_FILES = {str(_PACKAGE / f) for f in (
+    "actuation.py", "grasp.py", "ports.py", "camera.py", "testbed.py", "scene.py", "episode.py",
+    "observation.py")}
+_TESTBED_DIRS = (str(_PACKAGE / "tasks"),)
+
+Wiring = Callable[[DiagramBuilder, Testbed], Any]
 
 
-@dataclass
-class EpisodeOptions:
-    """One episode.
+class Episode:
+    """The testbed of a scenario plus the blocks ``wire`` adds, with its Simulator.
+
+    Args:
+        scenario: what to build (validated here).
+        wire: ``wire(builder, testbed)`` adds and connects the agent's blocks (the testbed is
+            already in ``builder``); its return value is kept as :attr:`blocks`. None: no
+            blocks (the caller fixes the testbed's inputs, as :class:`pr2_drake.env.Env` does).
+        meshcat: draw to this Meshcat.
 
     Attributes:
-        task: task id or name; None = flat ground, no referee (runs ``seconds``).
-        seed: episode seed.
-        agent: "module:Class"; None = the task's default agent.
-        diagram: a diagram YAML (see :mod:`pr2_drake.diagrams`) whose blocks replace the agent.
-        seconds: stop after this much simulated time [s] (default: the task's time limit).
-        time_step: physics step [s].
-        camera: camera settings override (None: the task's own choice).
-        meshcat: draw to this Meshcat (and pace the run at real time unless ``realtime`` is 0).
-        record: write a self-contained Meshcat replay (HTML) to this path.
-        realtime: target real-time rate with Meshcat (0 = as fast as possible).
-        progress: where to print progress lines (None: silent).
+        testbed, diagram, simulator, context: the built system and its root context.
+        tb_context, plant_context: the testbed's and the plant's contexts in ``context``.
+        limit: simulated time at which the episode ends "timeout" [s].
+        status: the latest verdict (:class:`EpisodeStatus`); ``message`` says why a fault
+            ended the episode.
     """
 
-    task: int | str | None = None
-    seed: int = 0
-    agent: str | None = None
-    diagram: str | None = None
-    seconds: float | None = None
-    time_step: float = 0.001
-    camera: CameraSettings | None = None
-    meshcat: Meshcat | None = None
-    record: str | None = None
-    realtime: float = 1.0
-    progress: TextIO | None = field(default=None)
+    def __init__(self, scenario: Scenario, wire: Wiring | None = None,
+                 meshcat: Meshcat | None = None):
+        scenario.validate()
+        # Free the diagrams of earlier episodes first: their reference cycles (see
+        # pr2_drake.lifetime) wait for a full collection, and each holds ~35 MB.
+        gc.collect()
+        self.scenario = scenario
+        testbed = Testbed(scenario.testbed_config(), meshcat)
+        builder = DiagramBuilder()
+        builder.AddSystem(testbed)
+        self.blocks = wire(builder, testbed) if wire is not None else None
+        self.diagram = builder.Build()
+        self.testbed = testbed
+        self.simulator = Simulator(self.diagram)
+        self.context = self.simulator.get_mutable_context()
+        self.tb_context = testbed.GetMyMutableContextFromRoot(self.context)
+        self.plant_context = testbed.plant.GetMyMutableContextFromRoot(self.context)
+        task = testbed.task
+        self.limit = scenario.time_limit(task.spec.time_limit if task is not None else None)
+        self._episode_port = testbed.GetOutputPort("episode") if task is not None else None
+        self._state_port = testbed.GetOutputPort("plant_state")
+        self._body_port = testbed.GetOutputPort("body_state")
+        self._internal = {id(s) for s in testbed.GetSystems()}
+        self.status = EpisodeStatus(max_score=task.spec.max_score if task is not None else 0.0)
+        self.message = ""
+
+    # -- running ------------------------------------------------------------------------------
+    @property
+    def time(self) -> float:
+        return self.context.get_time()
+
+    def initialize(self) -> EpisodeStatus:
+        """Reset the verdict and initialize the simulator; returns the first verdict."""
+        self.message = ""
+        self.status = EpisodeStatus(max_score=self.status.max_score)
+        try:
+            self.simulator.Initialize()
+        except Exception as e:
+            self._fault(e)
+            return self.status
+        self.status = self.judge()
+        return self.status
+
+    def advance_to(self, t: float) -> EpisodeStatus:
+        """Simulate to ``t`` [s] (at most to the limit) and return the verdict. A fault ends
+        the episode with its name (see the module docstring) instead of raising."""
+        if self.status.done:
+            return self.status
+        try:
+            self.simulator.AdvanceTo(min(t, self.limit))
+        except (Exception, SystemExit) as e:
+            self._fault(e)
+            return self.status
+        self.status = self.judge()
+        return self.status
+
+    def end(self, termination: str, message: str = "") -> EpisodeStatus:
+        """End the episode now with ``termination``, keeping the points earned."""
+        s = self.status
+        self.status = EpisodeStatus(s.score, s.max_score, True, False, termination,
+                                    list(s.items), self.time)
+        self.message = message
+        return self.status
+
+    # -- the verdict --------------------------------------------------------------------------
+    def judge(self) -> EpisodeStatus:
+        """The referee's verdict (or, without a task, fall and time), overruled by
+        "diverged" when the state is non-finite or beyond the scenario's limits, and ended
+        "timeout" at the limit."""
+        t = self.time
+        if self._episode_port is not None:
+            status = self._episode_port.Eval(self.tb_context)
+        else:
+            status = EpisodeStatus(time=t)
+            z = self._body_port.Eval(self.tb_context)[P_WB][2]
+            if z < self.scenario.limits.fall_height:
+                status.done, status.termination = True, "fell"
+        fault = self.state_fault()
+        if fault:
+            self.status = status
+            return self.end("diverged", fault)
+        if not status.done and t >= self.limit - 1e-9:
+            status = replace(status, done=True, termination="timeout", items=list(status.items))
+        return status
+
+    def state_fault(self) -> str:
+        """Why the plant state is not physical ("" if it is)."""
+        x = self._state_port.Eval(self.tb_context)
+        if not np.all(np.isfinite(x)):
+            return "the state is not finite (NaN or inf)"
+        nq = self.testbed.plant.num_positions()
+        limits = self.scenario.limits
+        q_max = float(np.max(np.abs(x[:nq]))) if nq else 0.0
+        v_max = float(np.max(np.abs(x[nq:]))) if x.size > nq else 0.0
+        if v_max > limits.max_speed:
+            return f"a speed of {v_max:.3g} (m/s or rad/s) is beyond limits.max_speed"
+        if q_max > limits.max_coordinate:
+            return f"a coordinate of {q_max:.3g} (m or rad) is beyond limits.max_coordinate"
+        return ""
+
+    def report(self, agent: str | None = None, wall_time: float | None = None,
+               sim_wall_time: float | None = None) -> dict[str, Any]:
+        """The episode's result in the ``report.json`` layout (see the README)."""
+        s, task = self.status, self.testbed.task
+        t = self.time
+        report = {
+            "task": None if task is None else task.id,
+            "task_name": "flat" if task is None else task.name,
+            "seed": int(self.scenario.seed),
+            "agent": agent,
+            "score": float(s.score),
+            "max_score": float(s.max_score),
+            "success": bool(s.success),
+            "termination": s.termination or "timeout",
+            "items": [{"item": e.item, "points": e.points, "time": round(e.time, 4)}
+                      for e in s.items],
+            "sim_time": round(t, 6),
+            "wall_time": None if wall_time is None else round(wall_time, 3),
+            "real_time_factor": (round(t / sim_wall_time, 3) if sim_wall_time else None),
+        }
+        if self.message:
+            report["message"] = self.message
+        return report
+
+    # -- faults -------------------------------------------------------------------------------
+    def _fault(self, e: BaseException) -> None:
+        origin = self._origin(e)
+        text = f"{type(e).__name__}: {' '.join(str(e).split())}"
+        if isinstance(e, SystemExit) and str(e.code).startswith("Failure at "):
+            origin = "drake"  # a failed condition inside Drake reaches Python as SystemExit
+        if isinstance(e, SystemExit) and origin != "drake":
+            self.end("agent_exit", f"the agent called sys.exit({e.code!r})")
+        elif origin == "agent":
+            self.end("agent_error", text)
+        elif origin == "testbed" and isinstance(e, ValueError):
+            self.end("invalid_action", " ".join(str(e).split()))
+        elif origin == "drake":
+            self.end("diverged", f"the simulation failed: {text}")
+        else:  # a bug in the testbed itself: let it surface
+            raise e
+
+    def _origin(self, e: BaseException) -> str:
+        """Whose code raised: "agent", "testbed" (its own blocks) or "drake" (no Python
+        callback involved). Found from the innermost Python frame run on behalf of a
+        System (its ``self``), else from the frame's source file."""
+        frames = []
+        tb = e.__traceback__
+        while tb is not None:
+            frames.append(tb.tb_frame)
+            tb = tb.tb_next
+        mine = {Episode.advance_to.__code__, Episode.initialize.__code__}
+        start = max((i for i, f in enumerate(frames) if f.f_code in mine), default=-1)
+        callbacks = frames[start + 1:]
+        if not callbacks:
+            return "drake"
+        for frame in reversed(callbacks):
+            owner = frame.f_locals.get("self")
+            if isinstance(owner, System):
+                return "testbed" if id(owner) in self._internal else "agent"
+        first = callbacks[0].f_code.co_filename
+        if first in _TESTBED_FILES or first.startswith(_TESTBED_DIRS):
+            return "testbed"
+        return "agent"
 
 
-def _config(opts: EpisodeOptions) -> TestbedConfig:
-    cfg = TestbedConfig(task=opts.task, seed=int(opts.seed), time_step=opts.time_step)
-    if opts.camera is not None:
-        cfg.camera = opts.camera
-    return cfg
+# -- wiring -------------------------------------------------------------------------------------
+def connect_by_name(builder: DiagramBuilder, testbed, agent) -> list[str]:
+    """Connect every agent input to the testbed output of the same name and every agent
+    output to the testbed input of the same name. Returns the connections made.
+
+    Raises:
+        ValueError: an agent input port has no testbed output of that name.
+    """
+    made = []
+    for i in range(agent.num_input_ports()):
+        port = agent.get_input_port(i)
+        name = port.get_name()
+        if not testbed.HasOutputPort(name):
+            outputs = [testbed.get_output_port(k).get_name()
+                       for k in range(testbed.num_output_ports())]
+            raise ValueError(
+                f"agent input port {name!r} has no testbed output of that name; testbed outputs: "
+                f"{outputs}"
+            )
+        builder.Connect(testbed.GetOutputPort(name), port)
+        made.append(f"testbed.{name} -> agent.{name}")
+    for i in range(agent.num_output_ports()):
+        port = agent.get_output_port(i)
+        name = port.get_name()
+        if testbed.HasInputPort(name):
+            builder.Connect(port, testbed.GetInputPort(name))
+            made.append(f"agent.{name} -> testbed.{name}")
+    return made
 
 
-class _Progress:
+def wire_system(system: System) -> Wiring:
+    """A wiring that adds ``system`` and connects it to the testbed by port name."""
+
+    def wire(builder: DiagramBuilder, testbed: Testbed) -> System:
+        warn_if_uncollectable(system)
+        builder.AddSystem(system)
+        connect_by_name(builder, testbed, system)
+        return system
+
+    return wire
+
+
+_WARNED: set[type] = set()
+
+
+def warn_if_uncollectable(system: System) -> None:
+    """Warn once per class when a Python System class lacks ``__slots__ = ()``: such a
+    system keeps its whole diagram (~35 MB) alive after the episode (see
+    :mod:`pr2_drake.lifetime`)."""
+    cls = type(system)
+    if cls in _WARNED:
+        return
+    for c in cls.__mro__:
+        if c.__module__.startswith("pydrake"):
+            break
+        if "__slots__" not in c.__dict__:
+            _WARNED.add(cls)
+            warnings.warn(
+                f"{c.__module__}.{c.__qualname__} does not declare __slots__ = (): every "
+                "episode's diagram will stay in memory until the process ends; add "
+                "`__slots__ = ()` to the class (see pr2_drake.lifetime)", stacklevel=3)
+            return
+
+
+# -- the whole run --------------------------------------------------------------------------
+class Progress:
     """Prints 'sim time / limit, score, real-time factor' every ``every`` wall seconds."""
 
     def __init__(self, stream: TextIO | None, limit: float, every: float = 2.0):
@@ -95,198 +324,152 @@ class _Progress:
               flush=True)
 
 
-def run_episode(opts: EpisodeOptions) -> dict[str, Any]:
-    """Simulate one episode and return its report (see ``report.json`` in the README)."""
-    wall_start = time.perf_counter()
-    diagram = None
-    if opts.diagram:
-        from pr2_drake.diagrams import load_diagram_spec
-
-        diagram = load_diagram_spec(opts.diagram)
-        if opts.agent:
-            raise ValueError("give either a diagram YAML or --agent, not both")
-        opts = replace(opts, task=opts.task if opts.task is not None else diagram.task)
-        agent_spec = opts.diagram
-    else:
-        agent_spec = opts.agent or DEFAULT_AGENTS.get(_task_key(opts.task))
-        cls = load_agent_class(agent_spec)
-    meshcat = opts.meshcat
-    if opts.record and meshcat is None:
-        meshcat = Meshcat()
-    testbed = Testbed(_config(opts), meshcat)
-    limit = testbed.task.spec.time_limit if testbed.task is not None else FREE_RUN_SECONDS
-    if opts.seconds is not None:
-        if not opts.seconds > 0:
-            raise ValueError(f"seconds must be positive, got {opts.seconds}")
-        limit = min(limit, opts.seconds) if testbed.task is not None else opts.seconds
-    context = dict(priors=dict(testbed.scene.priors), task=opts.task, seed=opts.seed)
-    if meshcat is not None and opts.record:
-        meshcat.StartRecording()
-    if diagram is not None:
-        from pr2_drake.diagrams import wire_diagram
-
-        runner = _SystemRunner(testbed, lambda b: wire_diagram(b, testbed, diagram, **context),
-                               limit)
-    elif is_system_agent(agent := instantiate_agent(cls, **context)):
-        runner = _SystemRunner(testbed, lambda b: connect_by_name(b, testbed, b.AddSystem(agent)),
-                               limit)
-    elif is_policy_agent(agent):
-        runner = _PolicyRunner(testbed, agent, limit)
-    else:
-        raise ValueError(
-            f"agent {agent_spec!r} is neither a Drake System nor has next_action(obs)"
-        )
-    if meshcat is not None and opts.realtime and not opts.record:
-        runner.simulator.set_target_realtime_rate(opts.realtime)
-    progress = _Progress(opts.progress, limit)
-    sim_start = time.perf_counter()
-    status, message = runner.run(progress)
-    sim_wall = time.perf_counter() - sim_start
-    t = runner.time()
-    progress(t, status, force=True)
-    if meshcat is not None and opts.record:
-        meshcat.StopRecording()
-        meshcat.PublishRecording()
-        Path(opts.record).write_text(meshcat.StaticHtml())
-    report = {
-        "task": None if testbed.task is None else testbed.task.id,
-        "task_name": "flat" if testbed.task is None else testbed.task.name,
-        "seed": int(opts.seed),
-        "agent": agent_spec,
-        "score": float(status.score),
-        "max_score": float(status.max_score),
-        "success": bool(status.success),
-        "termination": status.termination or "timeout",
-        "items": [{"item": e.item, "points": e.points, "time": round(e.time, 4)}
-                  for e in status.items],
-        "sim_time": round(t, 6),
-        "wall_time": round(time.perf_counter() - wall_start, 3),
-        "real_time_factor": round(t / sim_wall, 3) if sim_wall > 0 else None,
-    }
-    if message:
-        report["message"] = message
-    return report
+CHECK_EVERY = 0.05  # simulated seconds between verdicts of a System agent's episode [s]
 
 
-def _task_key(task):
-    if task is None:
-        return None
-    from pr2_drake.tasks import task_id
-
-    return task_id(task)
-
-
-def _free_status(t: float, z: float, limit: float) -> EpisodeStatus:
-    """Verdict without a referee: fell, diverged or time up."""
-    s = EpisodeStatus(time=t)
-    if not np.isfinite(z):
-        s.done, s.termination = True, "diverged"
-    elif z < FREE_FALL_HEIGHT:
-        s.done, s.termination = True, "fell"
-    elif t >= limit - 1e-9:
-        s.done, s.termination = True, "timeout"
-    return s
+def agent_spec(scenario: Scenario) -> str:
+    """The agent a scenario runs: its ``agent``, its ``diagram``, or the task's default."""
+    if scenario.diagram:
+        return scenario.diagram
+    if scenario.agent:
+        return scenario.agent
+    return DEFAULT_AGENTS[scenario.task]
 
 
-class _SystemRunner:
-    """Testbed plus blocks added by ``wire(builder)``, simulated in chunks."""
-
-    CHUNK = 0.05  # simulated seconds between verdict checks
-
-    def __init__(self, testbed: Testbed, wire, limit: float):
-        builder = DiagramBuilder()
-        builder.AddSystem(testbed)
-        wire(builder)
-        self.diagram = builder.Build()
-        self.testbed, self.limit = testbed, limit
-        self.simulator = Simulator(self.diagram)
-        self.ctx = self.simulator.get_mutable_context()
-        self.tb_ctx = testbed.GetMyContextFromRoot(self.ctx)
-
-    def time(self) -> float:
-        return self.ctx.get_time()
-
-    def status(self) -> EpisodeStatus:
-        tb, ctx = self.testbed, self.tb_ctx
-        if tb.task is not None:
-            s = tb.GetOutputPort("episode").Eval(ctx)
-            if not s.done and ctx.get_time() >= self.limit - 1e-9:
-                s = replace(s, done=True, termination="timeout", items=list(s.items))
-            return s
-        z = tb.GetOutputPort("body_state").Eval(ctx)[P_WB][2]
-        return _free_status(ctx.get_time(), z, self.limit)
-
-    def run(self, progress) -> tuple[EpisodeStatus, str]:
-        self.simulator.Initialize()
-        status = self.status()
-        while not status.done:
-            t_next = min(self.ctx.get_time() + self.CHUNK, self.limit)
-            try:
-                self.simulator.AdvanceTo(t_next)
-            except RuntimeError as e:
-                return _diverged(status), f"simulation diverged: {e}"
-            status = self.status()
-            progress(self.ctx.get_time(), status)
-        return status, ""
+def check_output_path(path: str | None, what: str) -> None:
+    """Fail before an episode starts if ``path`` cannot be written (a folder, no parent)."""
+    if path is None:
+        return
+    p = Path(path)
+    if p.is_dir():
+        raise ScenarioError(f"{what} {path}: is a folder; give a file name")
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise ScenarioError(f"{what} {path}: folder {parent} does not exist")
+    if not _writable(p):
+        raise ScenarioError(f"{what} {path}: cannot write there")
 
 
-class _PolicyRunner:
-    """A next_action(obs) agent driven through Env."""
+def _writable(p: Path) -> bool:
+    import os
 
-    def __init__(self, testbed: Testbed, agent, limit: float):
-        from pr2_drake.env import Env
-
-        self.env = Env.from_testbed(
-            testbed, control_dt=getattr(agent, "control_dt", None), time_limit=limit
-        )
-        self.agent, self.limit = agent, limit
-        self.simulator = self.env.simulator
-
-    def time(self) -> float:
-        return self.env.time
-
-    def run(self, progress) -> tuple[EpisodeStatus, str]:
-        obs = self.env.reset()
-        if hasattr(self.agent, "reset"):
-            self.agent.reset(obs)
-        done = self.env.status.done
-        while not done:
-            done, _, obs = self.env.step(self.agent.next_action(obs))
-            status = self.env.status
-            if not done and self.env.time >= self.limit - 1e-9:
-                return replace(status, done=True, termination="timeout", items=list(status.items)), ""
-            progress(self.env.time, status)
-        message = getattr(self.env, "divergence_message", "")
-        return self.env.status, (f"simulation diverged: {message}" if message else "")
+    return os.access(p if p.exists() else (p.parent if str(p.parent) else Path(".")), os.W_OK)
 
 
-def _diverged(s: EpisodeStatus) -> EpisodeStatus:
-    return EpisodeStatus(s.score, s.max_score, True, False, "diverged", list(s.items), s.time)
+def run_episode(scenario: Scenario, *, meshcat: Meshcat | None = None,
+                record: str | None = None, progress: TextIO | None = None) -> dict[str, Any]:
+    """Build the scenario, run its agent until the episode ends, and return the report.
 
-
-def connect_by_name(builder: DiagramBuilder, testbed, agent) -> list[str]:
-    """Connect every agent input to the testbed output of the same name and every agent
-    output to the testbed input of the same name. Returns the connections made.
+    Args:
+        scenario: the episode (see :class:`Scenario`).
+        meshcat: draw to this Meshcat (paced at ``scenario.realtime_rate`` unless recording).
+        record: write a self-contained Meshcat replay (HTML) to this path.
+        progress: where to print progress lines (None: silent).
 
     Raises:
-        ValueError: an agent input port has no testbed output of that name.
+        ScenarioError (a ValueError): the episode could not start (bad scenario, agent spec,
+            agent constructor, diagram file or output path). Once it runs, every fault ends
+            the episode with a named termination in the report instead.
     """
-    made = []
-    for i in range(agent.num_input_ports()):
-        port = agent.get_input_port(i)
-        name = port.get_name()
-        if not testbed.HasOutputPort(name):
-            outputs = [testbed.get_output_port(k).get_name() for k in range(testbed.num_output_ports())]
-            raise ValueError(
-                f"agent input port {name!r} has no testbed output of that name; testbed outputs: "
-                f"{outputs}"
-            )
-        builder.Connect(testbed.GetOutputPort(name), port)
-        made.append(f"testbed.{name} -> agent.{name}")
-    for i in range(agent.num_output_ports()):
-        port = agent.get_output_port(i)
-        name = port.get_name()
-        if testbed.HasInputPort(name):
-            builder.Connect(port, testbed.GetInputPort(name))
-            made.append(f"agent.{name} -> testbed.{name}")
-    return made
+    wall_start = time.perf_counter()
+    scenario.validate()
+    check_output_path(record, "--record")
+    spec = agent_spec(scenario)
+    context = dict(task=scenario.task, seed=scenario.seed, **scenario.agent_params)
+    if record and meshcat is None:
+        meshcat = Meshcat()
+    if scenario.diagram:
+        from pr2_drake.diagrams import load_diagram_spec, wire_diagram
+
+        diagram = load_diagram_spec(scenario.diagram)
+        if scenario.task is None and diagram.task is not None:
+            scenario = replace(scenario, task=diagram.task)
+            scenario.validate()
+        episode = _build(scenario, lambda b, tb: wire_diagram(b, tb, diagram,
+                                                               priors=dict(tb.scene.priors),
+                                                               **context), meshcat)
+        policy = None
+    else:
+        try:
+            cls = load_agent_class(spec)
+        except ValueError as e:
+            raise ScenarioError(str(e)) from None
+
+        def wire(builder: DiagramBuilder, testbed: Testbed):
+            agent = instantiate_agent(cls, priors=dict(testbed.scene.priors), **context)
+            if is_system_agent(agent):
+                return wire_system(agent)(builder, testbed)
+            if not is_policy_agent(agent):
+                raise ScenarioError(
+                    f"agent {spec!r} is neither a Drake System nor has next_action(obs)")
+            return agent
+
+        episode = _build(scenario, wire, meshcat)
+        policy = None if is_system_agent(episode.blocks) else episode.blocks
+    if meshcat is not None and record:
+        meshcat.StartRecording()
+    if meshcat is not None and scenario.realtime_rate and not record:
+        episode.simulator.set_target_realtime_rate(scenario.realtime_rate)
+    show = Progress(progress, episode.limit)
+    sim_start = time.perf_counter()
+    if policy is None:
+        _run_system(episode, show)
+    else:
+        _run_policy(episode, policy, show)
+    sim_wall = time.perf_counter() - sim_start
+    show(episode.time, episode.status, force=True)
+    if meshcat is not None and record:
+        meshcat.StopRecording()
+        meshcat.PublishRecording()
+        Path(record).write_text(meshcat.StaticHtml())
+    return episode.report(spec, time.perf_counter() - wall_start, sim_wall)
+
+
+def _build(scenario: Scenario, wire: Wiring | None, meshcat) -> Episode:
+    """An Episode, with wiring faults (a port of the agent that fits no testbed port) named."""
+    try:
+        return Episode(scenario, wire, meshcat)
+    except ScenarioError:
+        raise
+    except ValueError as e:
+        raise ScenarioError(" ".join(str(e).split())) from None
+    except RuntimeError as e:
+        raise ScenarioError(f"could not build the episode: {' '.join(str(e).split())}") from None
+
+
+def _run_system(episode: Episode, show: Progress) -> None:
+    status = episode.initialize()
+    while not status.done:
+        status = episode.advance_to(episode.time + CHECK_EVERY)
+        show(episode.time, status)
+
+
+def _run_policy(episode: Episode, agent, show: Progress) -> None:
+    from pr2_drake.env import Env, InvalidAction
+
+    env = Env.from_episode(episode, control_dt=getattr(agent, "control_dt", None))
+    obs = env.reset()
+    if hasattr(agent, "reset") and not _call_agent(episode, agent.reset, obs)[1]:
+        return
+    done = env.status.done
+    while not done:
+        action, ok = _call_agent(episode, agent.next_action, obs)
+        if not ok:
+            return
+        try:
+            done, _, obs = env.step(action)
+        except InvalidAction as e:
+            episode.end("invalid_action", str(e))
+            return
+        show(episode.time, env.status)
+
+
+def _call_agent(episode: Episode, method, *args):
+    """Call an agent's method; a raise or sys.exit ends the episode. Returns (result, ok)."""
+    try:
+        return method(*args), True
+    except SystemExit as e:
+        episode.end("agent_exit", f"the agent called sys.exit({e.code!r})")
+    except Exception as e:
+        episode.end("agent_error", f"{type(e).__name__}: {' '.join(str(e).split())}")
+    return None, False

@@ -22,6 +22,7 @@ from pydrake.multibody.plant import ExternallyAppliedSpatialForce, MultibodyPlan
 from pydrake.multibody.tree import BodyIndex, ModelInstanceIndex
 from pydrake.systems.framework import LeafSystem
 
+from pr2_drake.lifetime import weak_calc
 from pr2_drake.ports import PICK_VALUES
 
 HAND_BODIES = {"left_hand": "l_arm_sphere", "right_hand": "r_arm_sphere"}
@@ -88,6 +89,8 @@ class GraspSystem(LeafSystem):
     The command ports are sampled every ``period`` seconds (default 0.01 s).
     """
 
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
     def __init__(
         self,
         plant: MultibodyPlant,
@@ -101,7 +104,9 @@ class GraspSystem(LeafSystem):
         self._ctx = plant.CreateDefaultContext()
         self._graspables = list(graspables)
         self._gains = gains or GraspGains()
-        self._hands = {k: plant.GetBodyByName(v, robot) for k, v in HAND_BODIES.items()}
+        # Body indices, not bodies: a stored body holds the plant through a reference the
+        # garbage collector cannot see (pr2_drake.lifetime).
+        self._hands = {k: plant.GetBodyByName(v, robot).index() for k, v in HAND_BODIES.items()}
         self._weld_gains = [_stable_gains(self._gains, plant, g) for g in self._graspables]
         self._pick = self.DeclareAbstractInputPort("pick", AbstractValue.Make(""))
         self._release = self.DeclareAbstractInputPort("release", AbstractValue.Make(False))
@@ -111,12 +116,12 @@ class GraspSystem(LeafSystem):
         self._attachment = self.DeclareAbstractState(AbstractValue.Make(_NoAttachment()))
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update)
         self.DeclareAbstractOutputPort(
-            "pick_state", lambda: AbstractValue.Make(PickState()), self._calc_pick_state
+            "pick_state", lambda: AbstractValue.Make(PickState()), weak_calc(self._calc_pick_state)
         )
         self.DeclareAbstractOutputPort(
             "spatial_forces",
             lambda: AbstractValue.Make([ExternallyAppliedSpatialForce()]),
-            self._calc_forces,
+            weak_calc(self._calc_forces),
         )
 
     # -- helpers ------------------------------------------------------------------------------
@@ -143,7 +148,7 @@ class GraspSystem(LeafSystem):
         if not pick or release:
             return
         self._set_state(context)
-        X_WH = self._pose(self._hands[pick])
+        X_WH = self._pose(self._plant.get_body(self._hands[pick]))
         p_WH = X_WH.translation()
         # Of the objects whose condition holds, latch the one whose origin is nearest the hand.
         best = None
@@ -184,7 +189,7 @@ class GraspSystem(LeafSystem):
             return
         self._set_state(context)
         g = self._graspables[a.graspable]
-        hand = self._hands[a.hand]
+        hand = self._plant.get_body(self._hands[a.hand])
         obj = self._plant.get_body(g.body)
         X_WH = self._pose(hand)
         X_WO = self._pose(obj)

@@ -24,7 +24,8 @@ Action::
      "release": bool}
 
 All angles in rad, positions in m, in the world frame; joints in the original order
-(:data:`pr2_drake.robot.params.ARM_JOINTS`, :data:`LEG_JOINTS`).
+(:data:`pr2_drake.robot.params.ARM_JOINTS`, :data:`LEG_JOINTS`). A malformed action is a
+ValueError naming the key path and the fault (see :func:`parse_action`).
 """
 
 from __future__ import annotations
@@ -48,6 +49,8 @@ from pr2_drake.ports import (
     V_WB,
     W_WB,
     JointGroupCommand,
+    check_mode,
+    real_vector,
     validate_command,
 )
 
@@ -91,63 +94,90 @@ def state_vectors_from_obs(obs: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]
 
 
 def group_command(action: dict[str, Any], group: str) -> JointGroupCommand:
-    """Parse ``action[group]`` into a validated :class:`JointGroupCommand`.
+    """Parse ``action[group]`` (a group dict or a :class:`JointGroupCommand`) into a new,
+    validated command with a plain-str mode and float64 arrays.
 
     Raises:
-        ValueError: naming the key and the fault.
+        ValueError: naming the key path (e.g. ``action['legs']['joint_values']``) and the fault.
     """
     where = f"action[{group!r}]"
+    n = GROUP_SIZES[group]
     entry = action[group]
     if isinstance(entry, JointGroupCommand):
-        return validate_command(where, entry, GROUP_SIZES[group])
+        validate_command(where, entry, n)
+        return JointGroupCommand(
+            str(entry.mode),
+            real_vector(entry.values, n, f"{where}: values"),
+            None if entry.stiffness is None else real_vector(entry.stiffness, n, where),
+            None if entry.damping is None else real_vector(entry.damping, n, where),
+        )
     if not isinstance(entry, dict):
-        raise ValueError(f"{where}: expected a dict with keys {GROUP_KEYS}, got {type(entry).__name__}")
+        raise ValueError(f"{where}: expected a dict with keys {GROUP_KEYS} or a "
+                         f"JointGroupCommand, got {type(entry).__name__}")
     unknown = set(entry) - set(GROUP_KEYS)
     if unknown:
-        raise ValueError(f"{where}: unknown keys {sorted(unknown)}; expected {GROUP_KEYS}")
+        raise ValueError(f"{where}: unknown keys {_names(unknown)}; expected {GROUP_KEYS}")
     if "joint_values" not in entry:
-        raise ValueError(f"{where}: missing 'joint_values'")
+        raise ValueError(f"{where}['joint_values'] is missing")
 
-    def array(key):
+    def gains(key):
         value = entry.get(key)
         if value is None:
             return None
-        try:
-            return np.asarray(value, dtype=float).reshape(-1)
-        except (TypeError, ValueError):
-            raise ValueError(f"{where}[{key!r}]: not numeric: {value!r}") from None
+        return real_vector(value, n, f"{where}[{key!r}]", non_negative=True)
 
-    cmd = JointGroupCommand(
-        mode=entry.get("ctrl_mode", "position"),
-        values=array("joint_values"),
-        stiffness=array("stiffness"),
-        damping=array("dampings"),
+    return JointGroupCommand(
+        mode=check_mode(entry.get("ctrl_mode", "position"), f"{where}['ctrl_mode']"),
+        values=real_vector(entry["joint_values"], n, f"{where}['joint_values']"),
+        stiffness=gains("stiffness"),
+        damping=gains("dampings"),
     )
-    return validate_command(where, cmd, GROUP_SIZES[group])
 
 
 def parse_action(action: dict[str, Any]) -> dict[str, Any]:
     """Validate a PR2 action; returns {"arms": cmd|None, "legs": cmd|None, "pick": str,
-    "release": bool}. Groups absent from the action are None (keep the previous command)."""
+    "release": bool}. Groups absent from the action (or None) are None: keep the previous
+    command. Everything is checked before anything is returned, so a refused action changes
+    nothing.
+
+    Accepted: group dicts as in the module docstring (``ctrl_mode`` defaults to "position";
+    values as lists of ints/floats or real numpy arrays of the group's length, see
+    :func:`pr2_drake.ports.real_vector`) or :class:`JointGroupCommand` objects; ``pick`` None,
+    "" (no pick), "left_hand" or "right_hand" (str, numpy str too); ``release`` a bool or
+    numpy bool, None = False.
+
+    Raises:
+        ValueError: naming the key (``action['legs']['joint_values']``, ``action['pick']``...)
+            and the fault.
+    """
     if not isinstance(action, dict):
         raise ValueError(f"action: expected a dict with keys {ACTION_KEYS}, got {type(action).__name__}")
     unknown = set(action) - set(ACTION_KEYS)
     if unknown:
-        raise ValueError(f"action: unknown keys {sorted(unknown)}; expected some of {ACTION_KEYS}")
+        raise ValueError(f"action: unknown keys {_names(unknown)}; expected some of {ACTION_KEYS}")
     out: dict[str, Any] = {}
     for group in ("arms", "legs"):
         out[group] = group_command(action, group) if action.get(group) is not None else None
-    pick = action.get("pick") or ""
-    if pick not in PICK_VALUES:
-        raise ValueError(f"action['pick']: expected 'left_hand', 'right_hand' or None, got {pick!r}")
-    out["pick"] = pick
+    pick = action.get("pick")
+    if pick is None:
+        pick = ""
+    if not isinstance(pick, str) or pick not in PICK_VALUES:
+        shown = repr(pick) if isinstance(pick, str) else f"{type(pick).__name__} {pick!r:.60}"
+        raise ValueError(f"action['pick']: expected 'left_hand', 'right_hand' or None, got {shown}")
+    out["pick"] = str(pick)
     release = action.get("release", False)
     if release is None:
         release = False
     if not isinstance(release, (bool, np.bool_)):
-        raise ValueError(f"action['release']: expected a bool, got {release!r}")
+        raise ValueError(f"action['release']: expected a bool, got "
+                         f"{type(release).__name__} {release!r:.60}")
     out["release"] = bool(release)
     return out
+
+
+def _names(keys) -> list:
+    """Unknown keys for a message, sorted whatever their types."""
+    return sorted(keys, key=repr)
 
 
 def command_to_dict(cmd: JointGroupCommand) -> dict[str, Any]:

@@ -1,4 +1,4 @@
-"""Where the project's data lives: models/, tasks/, controllers/ and diagrams/.
+"""Where the project's data lives: models/, tasks/, controllers/, diagrams/ and scenarios/.
 
 In a source checkout (editable install) these are the top-level folders of the repository; in an
 installed wheel they ship inside the package under ``pr2_drake/share/``. Every loader asks this
@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 _PACKAGE_DIR = Path(__file__).resolve().parent
-_DATA_DIRS = ("models", "tasks", "controllers", "diagrams")
+_DATA_DIRS = ("models", "tasks", "controllers", "diagrams", "scenarios")
 
 
 def data_root() -> Path:

@@ -1,6 +1,5 @@
 """What a task scene hands to the testbed, and the plain flat-ground scene."""
 
-from __future__ import annotations
 
 from dataclasses import dataclass, field
 from typing import Any, Callable

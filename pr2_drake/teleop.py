@@ -13,6 +13,8 @@ import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.systems.framework import BasicVector, LeafSystem
 
+from pr2_drake.lifetime import weak_calc
+
 SLIDERS = (("vx [m/s]", -0.2, 0.35), ("vy [m/s]", -0.1, 0.1), ("yaw rate [rad/s]", -0.5, 0.5))
 
 
@@ -22,6 +24,8 @@ class VelocitySchedule(LeafSystem):
     Before the first entry the command is zero.
     """
 
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
     def __init__(self, schedule: Sequence[Sequence[float]]):
         super().__init__()
         rows = np.asarray(schedule, dtype=float)
@@ -30,7 +34,7 @@ class VelocitySchedule(LeafSystem):
         if np.any(np.diff(rows[:, 0]) < 0):
             raise ValueError("VelocitySchedule: entries must be sorted by t_start")
         self._rows = rows
-        self.DeclareVectorOutputPort("velocity_command", 3, self._calc)
+        self.DeclareVectorOutputPort("velocity_command", 3, weak_calc(self._calc))
 
     def _calc(self, context, output: BasicVector) -> None:
         k = np.searchsorted(self._rows[:, 0], context.get_time(), side="right") - 1
@@ -40,12 +44,14 @@ class VelocitySchedule(LeafSystem):
 class MeshcatVelocitySliders(LeafSystem):
     """Three Meshcat sliders (vx, vy, yaw rate) in the Meshcat control panel."""
 
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
     def __init__(self, meshcat: Meshcat):
         super().__init__()
         self._meshcat = meshcat
         for name, lo, hi in SLIDERS:
             meshcat.AddSlider(name, lo, hi, 0.01, 0.0)
-        self.DeclareVectorOutputPort("velocity_command", 3, self._calc)
+        self.DeclareVectorOutputPort("velocity_command", 3, weak_calc(self._calc))
 
     def _calc(self, context, output: BasicVector) -> None:
         output.SetFromVector([self._meshcat.GetSliderValue(name) for name, _, _ in SLIDERS])
@@ -58,12 +64,14 @@ class GamepadVelocity(LeafSystem):
     inside the dead zone, the command is zero.
     """
 
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
     def __init__(self, meshcat: Meshcat, max_command=(0.3, 0.1, 0.4), dead_zone: float = 0.1):
         super().__init__()
         self._meshcat = meshcat
         self._max = np.asarray(max_command, dtype=float)
         self._dead = float(dead_zone)
-        self.DeclareVectorOutputPort("velocity_command", 3, self._calc)
+        self.DeclareVectorOutputPort("velocity_command", 3, weak_calc(self._calc))
 
     def _calc(self, context, output: BasicVector) -> None:
         pad = self._meshcat.GetGamepad()

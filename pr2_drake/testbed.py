@@ -103,6 +103,7 @@ class Testbed(Diagram):
     """
 
     __test__ = False
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
     def __init__(self, config: TestbedConfig, meshcat: Meshcat | None = None,
                  params: RobotParams | None = None):

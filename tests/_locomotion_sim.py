@@ -8,7 +8,6 @@ from pydrake.common.value import AbstractValue
 from pydrake.geometry import SceneGraph
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
-from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from pr2_drake.controllers.standing import StandingPolicy
@@ -16,7 +15,8 @@ from pr2_drake.ports import BODY_STATE_SIZE, JOINT_STATE_SIZE, N_LEGS, JointGrou
 from pr2_drake.robot.model import BASE_BODY, add_kuavo, standing_base_pose
 from pr2_drake.scene import StartPose
 from pr2_drake.tasks import get_task
-from pr2_drake.testbed import TestbedConfig, build_testbed
+from pr2_drake.episode import Episode, wire_system
+from pr2_drake.scenario import Scenario
 
 
 class TestController(LeafSystem):
@@ -25,6 +25,8 @@ class TestController(LeafSystem):
     [rad] held in position mode instead of the nominal arm pose)."""
 
     __test__ = False
+
+    __slots__ = ()  # keeps the diagram collectable (pr2_drake.lifetime)
 
     def __init__(self):
         super().__init__()
@@ -57,26 +59,20 @@ class TaskSim:
     __test__ = False
 
     def __init__(self, task: int, seed: int = 0, start: StartPose | None = None):
-        builder = DiagramBuilder()
-        self.testbed = builder.AddSystem(
-            build_testbed(TestbedConfig(task=task, seed=seed, start=start)))
-        self.controller = builder.AddSystem(TestController())
-        tb, c = self.testbed, self.controller
-        for p in ("joint_state", "body_state"):
-            builder.Connect(tb.GetOutputPort(p), c.GetInputPort(p))
-        for p in ("legs_command", "arms_command"):
-            builder.Connect(c.GetOutputPort(p), tb.GetInputPort(p))
-        self.diagram = builder.Build()
-        self.simulator = Simulator(self.diagram)
-        root = self.simulator.get_mutable_context()
-        self.tb_ctx = tb.GetMyMutableContextFromRoot(root)
+        self.controller = TestController()
+        episode = Episode(Scenario(task=task, seed=seed, start=start),
+                          wire_system(self.controller))
+        self.run = episode
+        self.testbed = tb = episode.testbed
+        self.diagram, self.simulator = episode.diagram, episode.simulator
+        self.tb_ctx = episode.tb_context
         tb.GetInputPort("pick").FixValue(self.tb_ctx, "")
         tb.GetInputPort("release").FixValue(self.tb_ctx, False)
         self.plant = tb.plant
         self.robot = tb.robot
         self.scene = tb.scene
         self.spec = tb.task.spec
-        self.plant_ctx = self.plant.GetMyMutableContextFromRoot(root)
+        self.plant_ctx = episode.plant_context
         self.base = self.plant.GetBodyByName(BASE_BODY, self.robot)
         self.simulator.Initialize()
 

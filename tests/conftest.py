@@ -1,24 +1,28 @@
 """Shared fixtures: small builders used across the test suite."""
 
+import math
+
 import numpy as np
 import pytest
-from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
 
 from pr2_drake.controllers.standing import StandingController
-from pr2_drake.episode import connect_by_name
-from pr2_drake.testbed import Testbed, TestbedConfig
+from pr2_drake.episode import Episode, wire_system
+from pr2_drake.scenario import Scenario
 
 
-def standing_simulator(config: TestbedConfig | None = None):
+def standing_simulator(scenario: Scenario | None = None):
     """Testbed + StandingController; returns (simulator, testbed, testbed context)."""
-    builder = DiagramBuilder()
-    testbed = builder.AddSystem(Testbed(config or TestbedConfig()))
-    controller = builder.AddSystem(StandingController())
-    connect_by_name(builder, testbed, controller)
-    simulator = Simulator(builder.Build())
-    simulator.Initialize()
-    return simulator, testbed, testbed.GetMyContextFromRoot(simulator.get_context())
+    episode = Episode(scenario or Scenario(seconds=math.inf), wire_system(StandingController()))
+    episode.simulator.Initialize()
+    return episode.simulator, episode.testbed, episode.tb_context
+
+
+def wire_standing_legs(builder, testbed, controller: StandingController) -> None:
+    """Add ``controller`` and let it drive the legs only (the test drives the arms)."""
+    builder.AddSystem(controller)
+    for n in ("joint_state", "body_state"):
+        builder.Connect(testbed.GetOutputPort(n), controller.GetInputPort(n))
+    builder.Connect(controller.GetOutputPort("legs_command"), testbed.GetInputPort("legs_command"))
 
 
 @pytest.fixture

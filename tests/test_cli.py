@@ -39,7 +39,7 @@ def test_progress_lines_on_long_runs():
         (("run", "--agent", "pr2_drake.agents:Nope", "--seconds", "0.1"), "has no 'Nope'"),
         (("run", "--agent", "justaname", "--seconds", "0.1"), "module:Class"),
         (("run", "--task", "99"), "unknown task 99"),
-        (("run", "--seconds", "-1"), "seconds must be positive"),
+        (("run", "--seconds", "-1"), "seconds must be a positive finite number"),
     ],
 )
 def test_bad_arguments_give_clear_errors(args, message):

@@ -28,7 +28,7 @@ def _episode(task: int, seed: int):
         if done:
             break
     report = env.report()
-    state = env.testbed.GetOutputPort("plant_state").Eval(env._ctx).copy()
+    state = env.testbed.GetOutputPort("plant_state").Eval(env.episode.tb_context).copy()
     return report, state, obs
 
 

@@ -6,17 +6,15 @@ import math
 
 import numpy as np
 import pytest
-from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
 
 from pr2_drake.agents import DEFAULT_AGENTS
 from pr2_drake.agents.walk_to_goal import RockyRoadAgent, SlopeAgent
 from pr2_drake.controllers.footsteps import FlatTerrain, RoughTerrain, SlopeTerrain
 from pr2_drake.controllers.swing import SwingTrajectory
 from pr2_drake.controllers.walking_params import WalkingParams
-from pr2_drake.episode import connect_by_name
+from pr2_drake.episode import Episode, wire_system
 from pr2_drake.ports import P_WB
-from pr2_drake.testbed import Testbed, TestbedConfig
+from pr2_drake.scenario import Scenario
 
 SLOPE = math.radians(7.0)
 
@@ -71,12 +69,9 @@ def test_default_agents_of_tasks_1_and_4():
 
 
 def _run(task: int, agent_cls, seconds: float, seed: int = 0):
-    testbed = Testbed(TestbedConfig(task=task, seed=seed))
-    builder = DiagramBuilder()
-    builder.AddSystem(testbed)
-    connect_by_name(builder, testbed, builder.AddSystem(agent_cls(priors=testbed.scene.priors)))
-    simulator = Simulator(builder.Build())
-    ctx = testbed.GetMyContextFromRoot(simulator.get_mutable_context())
+    episode = Episode(Scenario(task=task, seed=seed), lambda b, tb: wire_system(
+        agent_cls(priors=tb.scene.priors))(b, tb))
+    simulator, testbed, ctx = episode.simulator, episode.testbed, episode.tb_context
     simulator.Initialize()
     z_max = -np.inf
     t = 0.0

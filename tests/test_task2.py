@@ -5,16 +5,18 @@ import pytest
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
-from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import ConstantValueSource
 
+from conftest import wire_standing_legs
 from pr2_drake.controllers.standing import StandingController
 from pr2_drake.ports import JointGroupCommand
 from pr2_drake.robot.params import ARM_JOINTS
 from pr2_drake.scene import StartPose
 from pr2_drake.tasks import get_task
 from pr2_drake.tasks.t2_valve import in_pick_volume
+from pr2_drake.episode import Episode
+from pr2_drake.scenario import Scenario
 from pr2_drake.testbed import Testbed, TestbedConfig
 
 SPEC = get_task(2).spec
@@ -24,6 +26,8 @@ VOLUME = SPEC.scene["pick_volume"]
 
 class ArmRamp(LeafSystem):
     """Arms in position mode: ``q0`` until t0, then a linear ramp to ``q1`` at t1."""
+
+    __slots__ = ()  # keeps the diagram collectable (pr2_drake.lifetime)
 
     def __init__(self, q0, q1, t0, t1):
         super().__init__()
@@ -41,26 +45,25 @@ def rig(start: StartPose, arm0: dict | None = None, arm1: dict | None = None,
         pick: str = "", seed: int = 0):
     """Standing robot (legs), arms ramping from arm0 to arm1 between 0.5 and 2.0 s, a constant
     pick command. Returns (simulator, testbed, testbed context, plant context)."""
-    b = DiagramBuilder()
-    tb = b.AddSystem(Testbed(TestbedConfig(task=2, seed=seed, start=start)))
-    st = b.AddSystem(StandingController())
-    for n in ("joint_state", "body_state"):
-        b.Connect(tb.GetOutputPort(n), st.GetInputPort(n))
-    b.Connect(st.GetOutputPort("legs_command"), tb.GetInputPort("legs_command"))
+    st = StandingController()
     q_nom = dict(zip(ARM_JOINTS, st.policy.q_arms_d))
     q0 = {**q_nom, **(arm0 or {})}
     q1 = {**q0, **(arm1 or {})}
-    arms = b.AddSystem(ArmRamp([q0[k] for k in ARM_JOINTS], [q1[k] for k in ARM_JOINTS], 0.5,
-                               2.0))
-    b.Connect(arms.get_output_port(), tb.GetInputPort("arms_command"))
-    src = b.AddSystem(ConstantValueSource(AbstractValue.Make(pick)))
-    b.Connect(src.get_output_port(), tb.GetInputPort("pick"))
-    sim = Simulator(b.Build())
-    pc = tb.plant.GetMyMutableContextFromRoot(sim.get_mutable_context())
+    arms = ArmRamp([q0[k] for k in ARM_JOINTS], [q1[k] for k in ARM_JOINTS], 0.5, 2.0)
+
+    def wire(b, tb):
+        wire_standing_legs(b, tb, st)
+        b.AddSystem(arms)
+        b.Connect(arms.get_output_port(), tb.GetInputPort("arms_command"))
+        src = b.AddSystem(ConstantValueSource(AbstractValue.Make(pick)))
+        b.Connect(src.get_output_port(), tb.GetInputPort("pick"))
+
+    ep = Episode(Scenario(task=2, seed=seed, start=start), wire)
+    tb, pc = ep.testbed, ep.plant_context
     for k, v in q0.items():  # start the arms at their first target (no transient)
         tb.plant.GetJointByName(k).set_angle(pc, v)
-    sim.Initialize()
-    return sim, tb, tb.GetMyContextFromRoot(sim.get_context()), pc
+    ep.simulator.Initialize()
+    return ep.simulator, tb, ep.tb_context, pc
 
 
 def new_plant():

@@ -8,10 +8,10 @@ from pathlib import Path
 
 from pydrake.multibody.math import SpatialVelocity
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
-from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from pr2_drake.camera import CameraSettings
+from conftest import wire_standing_legs
 from pr2_drake.controllers.standing import StandingController
 from pr2_drake.ports import JointGroupCommand
 from pr2_drake.robot.params import ARM_JOINTS
@@ -20,6 +20,8 @@ from pr2_drake.tasks import get_task
 from pr2_drake.tasks.house import add_house
 from pr2_drake.tasks.regions import region_from_yaml
 from pr2_drake.tasks.t6_object_search import model_extent
+from pr2_drake.episode import Episode
+from pr2_drake.scenario import Scenario
 from pr2_drake.testbed import Testbed, TestbedConfig
 
 TASK = get_task(6)
@@ -33,6 +35,8 @@ AWAY = StartPose(-2.0, -0.6, 0.0)  # living room, outside the table region
 class Commands(LeafSystem):
     """Arms ramp q0 -> q1 over [t0, t1]; pick with the right hand until t_release, then
     release."""
+
+    __slots__ = ()  # keeps the diagram collectable (pr2_drake.lifetime)
 
     def __init__(self, q0, q1, t0=0.3, t1=1.0, t_release=np.inf, hand="right_hand"):
         super().__init__()
@@ -58,22 +62,21 @@ class Commands(LeafSystem):
 
 def rig(start: StartPose, seed: int = 0, arm1: dict | None = None, hand: str = "",
         t_release: float = np.inf, camera: CameraSettings | None = NO_CAMERA):
-    b = DiagramBuilder()
-    tb = b.AddSystem(Testbed(TestbedConfig(task=6, seed=seed, start=start, camera=camera)))
-    st = b.AddSystem(StandingController())
-    for n in ("joint_state", "body_state"):
-        b.Connect(tb.GetOutputPort(n), st.GetInputPort(n))
-    b.Connect(st.GetOutputPort("legs_command"), tb.GetInputPort("legs_command"))
+    st = StandingController()
     q0 = dict(zip(ARM_JOINTS, st.policy.q_arms_d))
     q1 = {**q0, **(arm1 or {})}
-    cmd = b.AddSystem(Commands([q0[k] for k in ARM_JOINTS], [q1[k] for k in ARM_JOINTS],
-                               t_release=t_release, hand=hand))
-    for n in ("arms_command", "pick", "release"):
-        b.Connect(cmd.GetOutputPort(n), tb.GetInputPort(n))
-    sim = Simulator(b.Build())
-    sim.Initialize()
-    pc = tb.plant.GetMyMutableContextFromRoot(sim.get_mutable_context())
-    return sim, tb, tb.GetMyContextFromRoot(sim.get_context()), pc
+    cmd = Commands([q0[k] for k in ARM_JOINTS], [q1[k] for k in ARM_JOINTS],
+                   t_release=t_release, hand=hand)
+
+    def wire(b, tb):
+        wire_standing_legs(b, tb, st)
+        b.AddSystem(cmd)
+        for n in ("arms_command", "pick", "release"):
+            b.Connect(cmd.GetOutputPort(n), tb.GetInputPort(n))
+
+    ep = Episode(Scenario(task=6, seed=seed, start=start, camera=camera), wire)
+    ep.simulator.Initialize()
+    return ep.simulator, ep.testbed, ep.tb_context, ep.plant_context
 
 
 def body(tb, name):

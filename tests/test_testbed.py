@@ -1,5 +1,7 @@
 """The testbed diagram: ports, torque-driven legs, actuation modes, bad commands, camera."""
 
+import math
+
 import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
@@ -17,6 +19,7 @@ from pr2_drake.ports import (
     JointGroupCommand,
 )
 from pr2_drake.robot.params import load_robot_params
+from pr2_drake.scenario import Scenario
 from pr2_drake.testbed import TestbedConfig, build_testbed
 
 
@@ -156,7 +159,7 @@ def test_bad_config_is_rejected():
 
 def test_camera_images_and_rate():
     cam = CameraSettings(enabled=True, width=64, height=48, fps=10.0, quality="low")
-    simulator, testbed, ctx = standing_simulator(TestbedConfig(camera=cam))
+    simulator, testbed, ctx = standing_simulator(Scenario(camera=cam, seconds=math.inf))
     port = testbed.GetOutputPort("rgbd")
     simulator.AdvanceTo(0.02)
     frame = port.Eval(ctx)

@@ -27,6 +27,7 @@ import numpy as np
 from pydrake.common.yaml import yaml_load_typed
 from pydrake.systems.framework import BasicVector, Diagram, DiagramBuilder, LeafSystem
 
+from pr2_drake.lifetime import weak_calc
 from pr2_drake.paths import resolve_user_path
 from pr2_drake.ports import BODY_STATE_SIZE, P_WB, QUAT_WB
 
@@ -79,6 +80,8 @@ def goal_velocity(p_WB: np.ndarray, yaw: float, p_goal: np.ndarray,
 class GoalVelocityPlanner(LeafSystem):
     """``body_state`` in, ``velocity_command`` (vx, vy, yaw rate) out, towards ``goal`` (x, y)."""
 
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
     def __init__(self, goal, params: GoalPlannerParams | None = None):
         super().__init__()
         self.goal = np.asarray(goal, dtype=float)[:2]
@@ -86,7 +89,7 @@ class GoalVelocityPlanner(LeafSystem):
             raise ValueError(f"GoalVelocityPlanner: goal must be finite (x, y), got {goal}")
         self.params = params or GoalPlannerParams()
         self._body = self.DeclareVectorInputPort("body_state", BODY_STATE_SIZE)
-        self.DeclareVectorOutputPort("velocity_command", 3, self._calc)
+        self.DeclareVectorOutputPort("velocity_command", 3, weak_calc(self._calc))
 
     def _calc(self, context, output: BasicVector) -> None:
         x = self._body.Eval(context)
@@ -106,6 +109,8 @@ class WalkToGoalAgent(Diagram):
         params: goal-planner YAML (default controllers/goal_planner.yaml).
         walking_params: walking-controller YAML (default controllers/walking.yaml).
     """
+
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
     #: Default goal-planner YAML and walking-parameter overrides (subclasses change them).
     PLANNER_PARAMS = "controllers/goal_planner.yaml"
@@ -154,6 +159,8 @@ class SlopeAgent(WalkToGoalAgent):
     to ``goal_center``. Footholds on the incline follow the plane the stance sole stands on,
     capped at the goal height (the plateau); swing soles land pitched like the incline."""
 
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
     PLANNER_PARAMS = "controllers/goal_planner_slope.yaml"
     WALKING_OVERRIDES = "controllers/walking_slope.yaml"
 
@@ -170,6 +177,8 @@ class SlopeAgent(WalkToGoalAgent):
 class RockyRoadAgent(WalkToGoalAgent):
     """Task 1 reference agent: walks over unknown low stones to ``goal_center``: higher, slower
     steps, touchdown detected from contact (a blocked swing sole) rather than the plan."""
+
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
     PLANNER_PARAMS = "controllers/goal_planner_rough.yaml"
     WALKING_OVERRIDES = "controllers/walking_rough.yaml"

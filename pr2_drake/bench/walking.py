@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import cProfile
+import math
 import pstats
 import statistics
 import sys
@@ -28,15 +29,14 @@ import numpy as np
 from pydrake.math import RollPitchYaw
 from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.plant import ExternallyAppliedSpatialForce
-from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 from pr2_drake.controllers.posture import ArmPosture
 from pr2_drake.controllers.walking import WalkingController
 from pr2_drake.controllers.walking_params import WalkingParams
 from pr2_drake.robot.model import BASE_BODY
+from pr2_drake.tasks.base import FALL_HEIGHT  # [m] base_link below this = fallen
 
-FALL_HEIGHT = 0.35  # [m] base_link below this above the ground = fallen
 FALL_TILT = 0.8  # [rad] pelvis roll or pitch beyond this = fallen
 PUSH_POINT_B = np.array([0.0, 0.0, 0.20])  # [m] torso centre in base_link
 
@@ -45,30 +45,34 @@ class WalkingSim:
     """Testbed + WalkingController + ArmPosture, with a settable command and pushes."""
 
     def __init__(self, params: WalkingParams | None = None, meshcat=None):
-        from pr2_drake.testbed import Testbed, TestbedConfig
+        from pr2_drake.episode import Episode
+        from pr2_drake.scenario import Scenario
 
-        builder = DiagramBuilder()
-        self.testbed = builder.AddSystem(Testbed(TestbedConfig(), meshcat))
-        self.walker = builder.AddSystem(WalkingController(params))
-        self.arms = builder.AddSystem(ArmPosture(
-            stiffness=self.walker.params.arm_stiffness, damping=self.walker.params.arm_damping))
-        tb = self.testbed
-        builder.Connect(tb.GetOutputPort("joint_state"), self.walker.GetInputPort("joint_state"))
-        builder.Connect(tb.GetOutputPort("body_state"), self.walker.GetInputPort("body_state"))
-        builder.Connect(self.walker.GetOutputPort("legs_command"), tb.GetInputPort("legs_command"))
-        builder.Connect(self.arms.GetOutputPort("arms_command"), tb.GetInputPort("arms_command"))
-        self.diagram = builder.Build()
-        self.simulator = Simulator(self.diagram)
-        self.context = self.simulator.get_mutable_context()
-        self.plant = tb.plant
-        self.plant_context = self.plant.GetMyMutableContextFromRoot(self.context)
+        self.walker = WalkingController(params)
+        self.arms = ArmPosture(
+            stiffness=self.walker.params.arm_stiffness, damping=self.walker.params.arm_damping)
+        episode = Episode(Scenario(seconds=math.inf), self._wire, meshcat)
+        self.episode, self.testbed = episode, episode.testbed
+        self.diagram, self.simulator, self.context = (episode.diagram, episode.simulator,
+                                                      episode.context)
+        self.plant = self.testbed.plant
+        self.plant_context = episode.plant_context
         self.walker_context = self.walker.GetMyMutableContextFromRoot(self.context)
-        self.tb_context = tb.GetMyContextFromRoot(self.context)
+        self.tb_context = episode.tb_context
+        tb = self.testbed
         self.base = self.plant.GetBodyByName(BASE_BODY, tb.robot)
         self._force_port = self.plant.get_applied_spatial_force_input_port()
         self.set_command(0.0, 0.0, 0.0)
         self.push(None)
         self.simulator.Initialize()
+
+    def _wire(self, builder: DiagramBuilder, tb) -> None:
+        builder.AddSystem(self.walker)
+        builder.AddSystem(self.arms)
+        builder.Connect(tb.GetOutputPort("joint_state"), self.walker.GetInputPort("joint_state"))
+        builder.Connect(tb.GetOutputPort("body_state"), self.walker.GetInputPort("body_state"))
+        builder.Connect(self.walker.GetOutputPort("legs_command"), tb.GetInputPort("legs_command"))
+        builder.Connect(self.arms.GetOutputPort("arms_command"), tb.GetInputPort("arms_command"))
 
     def set_command(self, vx: float, vy: float, yaw_rate: float) -> None:
         self.walker.GetInputPort("velocity_command").FixValue(

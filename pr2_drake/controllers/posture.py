@@ -11,12 +11,15 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
+from pr2_drake.lifetime import weak_calc
 from pr2_drake.ports import N_ARMS, JointGroupCommand
 from pr2_drake.robot.params import load_robot_params
 
 
 class ArmPosture(LeafSystem):
     """Constant arm posture command (see the module docstring)."""
+
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
     def __init__(self, q_arms: np.ndarray | None = None, stiffness: float = 60.0,
                  damping: float = 3.0):
@@ -27,8 +30,9 @@ class ArmPosture(LeafSystem):
             raise ValueError(f"ArmPosture: q_arms must be {N_ARMS} finite values, got {q}")
         self._cmd = JointGroupCommand.position(q, np.full(N_ARMS, stiffness),
                                                np.full(N_ARMS, damping))
+        cmd = self._cmd  # the allocator must not capture self (pr2_drake.lifetime)
         self.DeclareAbstractOutputPort("arms_command",
-                                       lambda: AbstractValue.Make(self._cmd), self._calc)
+                                       lambda: AbstractValue.Make(cmd), weak_calc(self._calc))
 
     def _calc(self, context, output) -> None:
         output.set_value(self._cmd)

@@ -116,6 +116,8 @@ class StandingController(LeafSystem):
     ``params.period`` seconds and held in between.
     """
 
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
     def __init__(self, params: StandingParams | None = None):
         super().__init__()
         self.policy = StandingPolicy(params)

@@ -41,6 +41,7 @@ from pr2_drake.controllers.walking_core import (
     check_command,
 )
 from pr2_drake.controllers.walking_params import WalkingParams
+from pr2_drake.lifetime import weak_calc
 from pr2_drake.ports import (
     BODY_STATE_SIZE,
     EFFORT_ARMS,
@@ -105,6 +106,8 @@ class WalkingController(LeafSystem):
         params: a WalkingParams, a path to a YAML file, or None for controllers/walking.yaml.
     """
 
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
     def __init__(self, params: WalkingParams | str | None = None):
         super().__init__()
         self.params = _load(params)
@@ -118,9 +121,10 @@ class WalkingController(LeafSystem):
         self.DeclareInitializationDiscreteUpdateEvent(self._update)
         self.DeclareAbstractOutputPort(
             "legs_command", lambda: AbstractValue.Make(JointGroupCommand.effort(np.zeros(N_LEGS))),
-            self._calc_legs, prerequisites_of_calc={self.discrete_state_ticket(self._state)})
+            weak_calc(self._calc_legs),
+            prerequisites_of_calc={self.discrete_state_ticket(self._state)})
         self.DeclareVectorOutputPort(
-            "status", n_status, self._calc_status,
+            "status", n_status, weak_calc(self._calc_status),
             prerequisites_of_calc={self.discrete_state_ticket(self._state)})
         self._t_in_process = 0.0
         self._t_last_update: float | None = None

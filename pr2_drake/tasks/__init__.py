@@ -24,9 +24,11 @@ REGISTRY: dict[int, tuple[str, str]] = {
 
 
 def task_id(task: int | str) -> int:
-    """Normalise a task given as id (1..6, int or digit string) or name to its id."""
-    if isinstance(task, str) and task.isdigit():
-        task = int(task)
+    """Normalise a task given as id (1..6, int or digit string) or name (any case) to its id."""
+    if isinstance(task, str):
+        task = task.strip().lower()
+        if task.isdigit():
+            task = int(task)
     if isinstance(task, int) and not isinstance(task, bool):
         if task in REGISTRY:
             return task

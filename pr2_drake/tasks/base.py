@@ -20,10 +20,14 @@ from pydrake.multibody.tree import ModelInstanceIndex
 from pydrake.systems.framework import BasicVector, LeafSystem
 
 from pr2_drake.grasp import PickState
+from pr2_drake.lifetime import weak_calc
 from pr2_drake.robot.model import BASE_BODY
 from pr2_drake.scene import Scene, StartPose
 
-TERMINATIONS = ("completed", "fell", "left_region", "timeout", "diverged")
+# How an episode can end: the referee's verdicts, then the faults named by pr2_drake.episode.
+TERMINATIONS = ("completed", "fell", "left_region", "timeout", "diverged", "invalid_action",
+                "agent_error", "agent_exit")
+FALL_HEIGHT = 0.35  # default: fallen when the base is less than this above the ground [m]
 
 
 @dataclass
@@ -84,7 +88,7 @@ class TaskSpec:
     nominal_heading_deg: float = 0.0
     heading_noise_deg: float = 30.0
     arena: dict[str, list[float]] = field(default_factory=dict)
-    fall_height: float = 0.35
+    fall_height: float = FALL_HEIGHT
     max_score: float | None = None
     camera: dict[str, Any] = field(default_factory=dict)
     feedback: list[str] = field(default_factory=list)
@@ -93,12 +97,17 @@ class TaskSpec:
 
     @staticmethod
     def load(path) -> "TaskSpec":
-        raw = yaml_load_file(str(path))
+        try:
+            raw = yaml_load_file(str(path))
+        except Exception as e:  # YAML syntax: one line naming the file
+            raise ValueError(f"task file {path}: {' '.join(str(e).split())}") from None
+        if not isinstance(raw, dict) or not isinstance(raw.get("rubric"), list):
+            raise ValueError(f"task file {path}: expected a mapping with a 'rubric' list")
         try:
             rubric = [RubricItem(**r) for r in raw.pop("rubric")]
             spec = TaskSpec(rubric=rubric, **raw)
         except TypeError as e:
-            raise ValueError(f"{path}: {e}") from None
+            raise ValueError(f"task file {path}: {e}") from None
         if spec.max_score is None:
             spec.max_score = float(sum(r.points for r in rubric if r.points > 0))
         return spec
@@ -131,6 +140,8 @@ class Referee(LeafSystem):
     :meth:`feedback` and :meth:`instruction`.
     """
 
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
     def __init__(self, spec: TaskSpec, plant: MultibodyPlant, robot: ModelInstanceIndex,
                  scene: Scene, period: float = 0.01):
         super().__init__()
@@ -139,7 +150,7 @@ class Referee(LeafSystem):
         self.robot = robot
         self.scene = scene
         self.ctx = plant.CreateDefaultContext()
-        self.base = plant.GetBodyByName(BASE_BODY, robot)
+        self._base_index = plant.GetBodyByName(BASE_BODY, robot).index()
         self._state_in = self.DeclareVectorInputPort(
             "plant_state", plant.num_positions() + plant.num_velocities()
         )
@@ -151,14 +162,21 @@ class Referee(LeafSystem):
             AbstractValue.Make(EpisodeStatus(max_score=spec.max_score))
         )
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update)
-        self.DeclareVectorOutputPort("score", 1, self._calc_score)
+        self.DeclareVectorOutputPort("score", 1, weak_calc(self._calc_score))
         self.DeclareStateOutputPort("episode", self._status)
         self.DeclareAbstractOutputPort(
-            "task_feedback", lambda: AbstractValue.Make(dict()), self._calc_feedback
+            "task_feedback", lambda: AbstractValue.Make(dict()), weak_calc(self._calc_feedback)
         )
         self.DeclareAbstractOutputPort(
-            "instruction", lambda: AbstractValue.Make(""), self._calc_instruction
+            "instruction", lambda: AbstractValue.Make(""), weak_calc(self._calc_instruction)
         )
+
+    # Multibody elements (bodies, joints, frames) are kept as indices: a stored element holds its
+    # plant through a reference the garbage collector cannot see (pr2_drake.lifetime).
+    @property
+    def base(self):
+        """The robot's base body."""
+        return self.plant.get_body(self._base_index)
 
     # -- for subclasses -----------------------------------------------------------------------
     def judge(self, context, status: EpisodeStatus) -> None:

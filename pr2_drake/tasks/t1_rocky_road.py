@@ -37,6 +37,8 @@ def make_road(spec: TaskSpec) -> RockyRoad:
 class RockyRoadReferee(Referee):
     """Awards ``task_region``, ``half_road`` and ``finish`` from the base position."""
 
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
     def __init__(self, spec: TaskSpec, plant: MultibodyPlant, robot: ModelInstanceIndex,
                  scene: Scene):
         super().__init__(spec, plant, robot, scene)

@@ -37,6 +37,7 @@ from pydrake.multibody.tree import (
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from pr2_drake.grasp import Graspable
+from pr2_drake.lifetime import weak_calc
 from pr2_drake.scene import Scene, add_flat_ground
 from pr2_drake.tasks.base import EpisodeStatus, Referee, TaskDefinition
 from pr2_drake.tasks.regions import add_marker, region_from_yaml, rgba
@@ -51,6 +52,8 @@ class ValveFriction(LeafSystem):
     applied generalized force input.
     """
 
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
     def __init__(self, plant: MultibodyPlant, v_index: int, torque: float, speed: float):
         super().__init__()
         if torque < 0 or speed <= 0:
@@ -59,7 +62,7 @@ class ValveFriction(LeafSystem):
         self._nq, self._nv = plant.num_positions(), plant.num_velocities()
         self._iv, self._tau, self._speed = v_index, float(torque), float(speed)
         self._x = self.DeclareVectorInputPort("plant_state", self._nq + self._nv)
-        self.DeclareVectorOutputPort("generalized_force", self._nv, self._calc)
+        self.DeclareVectorOutputPort("generalized_force", self._nv, weak_calc(self._calc))
 
     def _calc(self, context, output) -> None:
         w = self._x.Eval(context)[self._nq + self._iv]
@@ -145,17 +148,19 @@ def _fixed_frame(plant: MultibodyPlant, name: str, p_WF) -> FixedOffsetFrame:
 class ValveReferee(Referee):
     """Scores task 2 from the base position and the valve joint angle."""
 
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
     def __init__(self, spec, plant, robot, scene: Scene):
         super().__init__(spec, plant, robot, scene)
         s = spec.scene
-        self._joint = plant.GetJointByName("valve_joint")
+        self._joint_index = plant.GetJointByName("valve_joint").index()
         self._region = region_from_yaml(s["task_region"])
         self._turn = np.radians(s["turn_threshold_deg"])
         self._goal = np.radians(s["turn_goal_deg"])
 
     def valve_angle(self) -> float:
         """Valve joint angle [rad] from its start (self.ctx holds the plant state)."""
-        return float(self._joint.get_angle(self.ctx))
+        return float(self.plant.get_joint(self._joint_index).get_angle(self.ctx))
 
     def judge(self, context, status: EpisodeStatus) -> None:
         t = context.get_time()
@@ -191,10 +196,15 @@ class Task(TaskDefinition):
             name=v["id"], body=wheel.index(), mode="ball",
             can_pick=lambda p_WH, X_WO: in_pick_volume(p_WH, center, volume))
 
+        # Capture the index, not the joint: the scene keeps this closure, and a joint holds
+        # its plant through a reference the garbage collector cannot see (pr2_drake.lifetime).
+        joint_index = joint.index()
+
         def add_friction(builder: DiagramBuilder, plant_: MultibodyPlant) -> None:
             friction = builder.AddNamedSystem(
                 "valve_friction",
-                ValveFriction(plant_, joint.velocity_start(), v["friction_torque"],
+                ValveFriction(plant_, plant_.get_joint(joint_index).velocity_start(),
+                              v["friction_torque"],
                               v["friction_speed"]))
             builder.Connect(plant_.get_state_output_port(), friction.GetInputPort("plant_state"))
             builder.Connect(friction.GetOutputPort("generalized_force"),

@@ -55,6 +55,7 @@ from pydrake.multibody.tree import (
 )
 from pydrake.systems.framework import BasicVector, LeafSystem
 
+from pr2_drake.lifetime import weak_calc
 from pr2_drake.scene import GROUND_FRICTION, Scene, add_flat_ground
 from pr2_drake.tasks.base import EpisodeStatus, Referee, ScoreEvent, TaskDefinition, TaskSpec
 from pr2_drake.tasks.regions import (
@@ -97,10 +98,12 @@ class BarProfile:
 class BarMotion(LeafSystem):
     """Output port ``desired_state``: [q_d, v_d] of the bar's prismatic joint at time t."""
 
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
     def __init__(self, profile: BarProfile):
         super().__init__()
         self.profile = profile
-        self.DeclareVectorOutputPort("desired_state", 2, self._calc)
+        self.DeclareVectorOutputPort("desired_state", 2, weak_calc(self._calc))
 
     def _calc(self, context, output: BasicVector) -> None:
         output.SetFromVector(np.array(self.profile.at(context.get_time())))
@@ -148,19 +151,35 @@ class BarLayout:
 class MovingBarReferee(Referee):
     """Judges step over, jump over and bar contacts (see the module docstring)."""
 
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
     def __init__(self, spec: TaskSpec, plant: MultibodyPlant, robot: ModelInstanceIndex,
                  scene: Scene):
         super().__init__(spec, plant, robot, scene)
         self.layout: BarLayout = scene.data["layout"]
-        self.bar = plant.GetBodyByName(self.layout.name)
-        self.slider = plant.GetJointByName(f"{self.layout.name}_slider")
+        self._bar_index = plant.GetBodyByName(self.layout.name).index()
+        self._slider_index = plant.GetJointByName(f"{self.layout.name}_slider").index()
         self.settle_time = float(spec.scene["settle_time"])
         self.contact_gap = float(spec.scene["contact_gap"])
         self.robot_bodies = frozenset(plant.GetBodyIndices(robot))
         self.bar_bodies = frozenset([self.bar.index()])
         self.ground_bodies = frozenset([plant.world_body().index()])
-        self.soles = [plant.GetFrameByName(n, robot) for n in SOLE_FRAME_NAMES]
+        self._sole_indices = [plant.GetFrameByName(n, robot).index() for n in SOLE_FRAME_NAMES]
         self.period = 0.01
+
+    # Multibody elements (bodies, joints, frames) are kept as indices: a stored element holds its
+    # plant through a reference the garbage collector cannot see (pr2_drake.lifetime).
+    @property
+    def bar(self):
+        return self.plant.get_body(self._bar_index)
+
+    @property
+    def slider(self):
+        return self.plant.get_joint(self._slider_index)
+
+    @property
+    def soles(self):
+        return [self.plant.get_frame(i) for i in self._sole_indices]
 
     # -- scoring: the better of step/jump, minus every contact episode ------------------------
     def award(self, status: EpisodeStatus, item: str, time: float) -> None:

@@ -28,6 +28,8 @@ from pr2_drake.tasks.terrain import Slope
 class SlopeReferee(Referee):
     """Awards ``task_region`` and ``finish`` from the base position."""
 
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
     def __init__(self, spec: TaskSpec, plant: MultibodyPlant, robot: ModelInstanceIndex,
                  scene: Scene):
         super().__init__(spec, plant, robot, scene)

@@ -53,6 +53,8 @@ from pr2_drake.tasks.terrain import Staircase
 class StepsButtonReferee(Referee):
     """Awards the step items from the feet and the button items from sustained contact."""
 
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
     def __init__(self, spec: TaskSpec, plant: MultibodyPlant, robot: ModelInstanceIndex,
                  scene: Scene):
         super().__init__(spec, plant, robot, scene)
@@ -63,8 +65,14 @@ class StepsButtonReferee(Referee):
         self.robot_bodies = frozenset(plant.GetBodyIndices(robot))
         self.arm_bodies = body_indices(plant, robot, ARM_BODY_NAMES)
         self.feet = [plant.GetBodyByName(n, robot).index() for n in FOOT_BODY_NAMES]
-        self.soles = [plant.GetFrameByName(n, robot) for n in SOLE_FRAME_NAMES]
+        self._sole_indices = [plant.GetFrameByName(n, robot).index() for n in SOLE_FRAME_NAMES]
         self.button = frozenset([plant.GetBodyByName(s["button"]["name"]).index()])
+
+    # Multibody elements (bodies, joints, frames) are kept as indices: a stored element holds its
+    # plant through a reference the garbage collector cannot see (pr2_drake.lifetime).
+    @property
+    def soles(self):
+        return [self.plant.get_frame(i) for i in self._sole_indices]
 
     def _feet_on(self, supported: set, level: int) -> bool:
         """Both feet in contact, over level >= ``level``, soles high enough for that level."""

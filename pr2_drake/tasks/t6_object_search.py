@@ -104,17 +104,25 @@ def sample_room_start(room_cfg: dict, noise_deg: float, rng: np.random.Generator
 class ObjectSearchReferee(Referee):
     """Scores task 6 from the base, the target object and the pick state."""
 
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
     def __init__(self, spec, plant, robot, scene: Scene):
         super().__init__(spec, plant, robot, scene)
         s = spec.scene
         self.target: str = scene.data["target"]
-        self._target_body = plant.get_body(scene.data["bodies"][self.target])
+        self._target_index = scene.data["bodies"][self.target]
         self._table: Table = scene.data["tables"][s["table"]]
         self._table_region = self._table.grown(float(s["table_region_margin"]))
         self._requires_held = bool(s.get("table_region_requires_target_held", True))
         self._pick_radius = float(s["pick_region_radius"])
         self._place = s["place"]
         self._sentence: str = scene.data["instruction"]
+
+    # Multibody elements (bodies, joints, frames) are kept as indices: a stored element holds its
+    # plant through a reference the garbage collector cannot see (pr2_drake.lifetime).
+    @property
+    def _target_body(self):
+        return self.plant.get_body(self._target_index)
 
     def holding_target(self, context) -> bool:
         p = self.pick_state(context)
