@@ -42,21 +42,37 @@ PUSH_POINT_B = np.array([0.0, 0.0, 0.20])  # [m] torso centre in base_link
 
 
 class WalkingSim:
-    """Testbed + WalkingController + ArmPosture, with a settable command and pushes."""
+    """Testbed + WalkingController + ArmPosture, with a settable command and pushes.
 
-    def __init__(self, params: WalkingParams | None = None, meshcat=None):
+    With ``arms="effort"`` the walking controller's QP drives the arms (no ArmPosture); then
+    :meth:`set_hand_targets` sets its ``hand_targets`` input and its ``pick_state`` input
+    follows the testbed's. ``controller_kwargs`` go to the WalkingController (footsteps,
+    terrain). ``add_systems(builder, testbed)`` may add systems before the build.
+    """
+
+    def __init__(self, params: WalkingParams | None = None, meshcat=None, arms: str = "position",
+                 add_systems=None, **controller_kwargs):
         from pr2_drake.testbed import Testbed, TestbedConfig
 
         builder = DiagramBuilder()
         self.testbed = builder.AddSystem(Testbed(TestbedConfig(), meshcat))
-        self.walker = builder.AddSystem(WalkingController(params))
-        self.arms = builder.AddSystem(ArmPosture(
-            stiffness=self.walker.params.arm_stiffness, damping=self.walker.params.arm_damping))
+        self.walker = builder.AddSystem(WalkingController(params, arms=arms, **controller_kwargs))
         tb = self.testbed
         builder.Connect(tb.GetOutputPort("joint_state"), self.walker.GetInputPort("joint_state"))
         builder.Connect(tb.GetOutputPort("body_state"), self.walker.GetInputPort("body_state"))
         builder.Connect(self.walker.GetOutputPort("legs_command"), tb.GetInputPort("legs_command"))
-        builder.Connect(self.arms.GetOutputPort("arms_command"), tb.GetInputPort("arms_command"))
+        if arms == "effort":
+            builder.Connect(self.walker.GetOutputPort("arms_command"),
+                            tb.GetInputPort("arms_command"))
+            builder.Connect(tb.GetOutputPort("pick_state"), self.walker.GetInputPort("pick_state"))
+        else:
+            self.arms = builder.AddSystem(ArmPosture(
+                stiffness=self.walker.params.arm_stiffness,
+                damping=self.walker.params.arm_damping))
+            builder.Connect(self.arms.GetOutputPort("arms_command"),
+                            tb.GetInputPort("arms_command"))
+        if add_systems is not None:
+            add_systems(builder, tb)
         self.diagram = builder.Build()
         self.simulator = Simulator(self.diagram)
         self.context = self.simulator.get_mutable_context()
@@ -67,8 +83,14 @@ class WalkingSim:
         self.base = self.plant.GetBodyByName(BASE_BODY, tb.robot)
         self._force_port = self.plant.get_applied_spatial_force_input_port()
         self.set_command(0.0, 0.0, 0.0)
+        if arms == "effort":
+            self.set_hand_targets([None, None])
         self.push(None)
         self.simulator.Initialize()
+
+    def set_hand_targets(self, targets) -> None:
+        """[left, right] hand targets p_WH [m] (None each: no target); arms="effort" only."""
+        self.walker.GetInputPort("hand_targets").FixValue(self.walker_context, list(targets))
 
     def set_command(self, vx: float, vy: float, yaw_rate: float) -> None:
         self.walker.GetInputPort("velocity_command").FixValue(

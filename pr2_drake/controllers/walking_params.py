@@ -147,8 +147,8 @@ class QpParams:
 class ArmParams:
     """The arms when the whole-body QP drives them (``arms_command`` in effort mode)."""
 
-    posture: TaskGains = field(default_factory=lambda: TaskGains(100.0, 20.0, 1.0))
-    hand: TaskGains = field(default_factory=lambda: TaskGains(150.0, 25.0, 50.0))
+    posture: TaskGains = field(default_factory=lambda: TaskGains(100.0, 20.0, 0.1))
+    hand: TaskGains = field(default_factory=lambda: TaskGains(150.0, 25.0, 100.0))
     # Hand targets farther than this from the shoulder are pulled back onto this sphere [m].
     reach_max: float = 0.42
     # ... and below this height above the ground under the robot (mean sole height) [m].
