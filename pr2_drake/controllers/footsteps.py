@@ -151,7 +151,12 @@ class FootstepPlanner:
     The gait state machine (:class:`pr2_drake.controllers.gait.GaitPlanner`) asks it at the
     start of a walk and at every touchdown; step adjustment may then move the landing point.
     Footsteps are sole poses (x, y, z, yaw) in W [m, rad]; sides 0 left, 1 right.
+
+    ``adjustable``: whether step adjustment (capture point) may move a planned landing point
+    and time (True: robust to pushes; False: the soles land on the planned footholds).
     """
+
+    adjustable = True
 
     def keep_walking(self, command: np.ndarray, footholds: list) -> bool:
         """Whether to (keep) step(ping), given the velocity command and the soles' footholds."""
@@ -212,9 +217,12 @@ class FixedFootstepPlanner(FootstepPlanner):
         first_side: side of the first footstep (0 left, 1 right).
         gait: the nominal step width (the closing step beside the last foothold).
         tolerance: [m] a sole within this of a listed foothold (same side) has landed there.
+        adjustable: let step adjustment move the landings (default False: land on the list).
     """
 
-    def __init__(self, footholds, first_side: int, gait: GaitParams, tolerance: float = 0.05):
+    def __init__(self, footholds, first_side: int, gait: GaitParams, tolerance: float = 0.05,
+                 adjustable: bool = False):
+        self.adjustable = bool(adjustable)
         self.steps = [np.asarray(f, dtype=float).reshape(4) for f in footholds]
         if not self.steps or any(not np.all(np.isfinite(f)) for f in self.steps):
             raise ValueError("FixedFootstepPlanner: footholds must be finite (x, y, z, yaw)")

@@ -202,7 +202,7 @@ class GaitPlanner:
             if ((progress >= g.touchdown_min_phase and heights.min() < g.touchdown_height)
                     or blocked or t >= self.swing.landing_time + g.late_touchdown):
                 self._touchdown(t, com, comd)
-            elif progress < g.dcm_freeze_phase:
+            elif progress < g.dcm_freeze_phase and self.footsteps.adjustable:
                 self._adjust_swing_target(t, com, comd)
 
     def _fill_plan(self, t: float, dt: float, com, comd) -> WholeBodyPlan:
