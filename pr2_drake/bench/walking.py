@@ -51,7 +51,7 @@ class WalkingSim:
     """
 
     def __init__(self, params: WalkingParams | None = None, meshcat=None, arms: str = "position",
-                 add_systems=None, **controller_kwargs):
+                 add_systems=None, pick_state_from_testbed: bool = True, **controller_kwargs):
         from pr2_drake.testbed import Testbed, TestbedConfig
 
         builder = DiagramBuilder()
@@ -64,7 +64,9 @@ class WalkingSim:
         if arms == "effort":
             builder.Connect(self.walker.GetOutputPort("arms_command"),
                             tb.GetInputPort("arms_command"))
-            builder.Connect(tb.GetOutputPort("pick_state"), self.walker.GetInputPort("pick_state"))
+            if pick_state_from_testbed:
+                builder.Connect(tb.GetOutputPort("pick_state"),
+                                self.walker.GetInputPort("pick_state"))
         else:
             self.arms = builder.AddSystem(ArmPosture(
                 stiffness=self.walker.params.arm_stiffness,
@@ -96,13 +98,15 @@ class WalkingSim:
         self.walker.GetInputPort("velocity_command").FixValue(
             self.walker_context, np.array([vx, vy, yaw_rate], dtype=float))
 
-    def push(self, force_W: np.ndarray | None) -> None:
-        """Apply a constant force [N] (in W) at the torso centre, or None to stop."""
+    def push(self, force_W: np.ndarray | None, body=None, p_BQ=PUSH_POINT_B) -> None:
+        """Apply a constant force [N] (in W) at the torso centre (or at point p_BQ [m] of
+        ``body``), or None to stop."""
         forces = []
         if force_W is not None:
+            body = self.base if body is None else body
             f = ExternallyAppliedSpatialForce()
-            f.body_index = self.base.index()
-            f.p_BoBq_B = PUSH_POINT_B
+            f.body_index = body.index()
+            f.p_BoBq_B = np.asarray(p_BQ, dtype=float)
             f.F_Bq_W = SpatialForce(np.zeros(3), np.asarray(force_W, dtype=float))
             forces.append(f)
         self._force_port.FixValue(self.plant_context, forces)

@@ -113,6 +113,7 @@ class GaitPlanner:
         self._td_com = (0.0, np.zeros(2))
         self._t_command_change = np.inf
         self._last_command = np.zeros(3)
+        self.com_offset = None
 
     def clip_command(self, command: np.ndarray) -> np.ndarray:
         """Clip a checked command (vx, vy, yaw_rate) to the configured limits."""
@@ -123,10 +124,13 @@ class GaitPlanner:
                          min(max(cmd[2], -lim.yaw_rate_max), lim.yaw_rate_max)])
 
     # ---- the tick ----------------------------------------------------------------------------
-    def update(self, t: float, command: np.ndarray, com, comd) -> WholeBodyPlan:
+    def update(self, t: float, command: np.ndarray, com, comd,
+               com_offset: np.ndarray | None = None) -> WholeBodyPlan:
         """One tick at time t [s] for a checked velocity command (vx, vy, yaw_rate) in the
         heading frame [m/s, m/s, rad/s] and the measured CoM p_WCcm, v_WCcm (the model holds
-        the measured state). Returns the plan (the same object every tick, updated)."""
+        the measured state). ``com_offset`` (xy, W) [m] shifts the standing CoM target (e.g.
+        leaning against a force at a hand). Returns the plan (the same object every tick)."""
+        self.com_offset = com_offset
         p = self.params
         target_cmd = self.clip_command(command)
         m = self.model
@@ -214,6 +218,8 @@ class GaitPlanner:
         ground = self._ground_z()
         if self.phase == Phase.STAND:
             target = 0.5 * (zmp_point(self.footholds[0], g) + zmp_point(self.footholds[1], g))
+            if self.com_offset is not None:
+                target = target + self.com_offset
             a_xy = p.com_xy.kp * (target - com[:2]) - p.com_xy.kd * comd[:2]
         elif self.phase in (Phase.START, Phase.DOUBLE):
             a_xy = self._shift_comdd(t, com, comd)

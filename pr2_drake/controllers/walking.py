@@ -173,7 +173,9 @@ class WalkingController(LeafSystem):
             pick = self._pick_port.Eval(context) if self._pick_port.HasValue(context) else None
             attached = (bool(pick and pick.attached and pick.hand == "left_hand"),
                         bool(pick and pick.attached and pick.hand == "right_hand"))
-            tau = self.core.update(context.get_time(), q, v, cmd, None, targets, attached)
+            # The applied arm efforts (one step old) give the held hand's force estimate.
+            applied = joint_state[EFFORT_ARMS] if context.get_time() > 0.0 else None
+            tau = self.core.update(context.get_time(), q, v, cmd, applied, targets, attached)
             tau = np.concatenate([tau, self.core.tau_arms])
         else:
             # The applied arm efforts (one step old) tell the QP what the arm controller does.

@@ -136,9 +136,9 @@ class QpParams:
     joint_limit_horizon: float = 0.08  # [s] braking horizon of the joint-limit rows
     polish: bool = True  # OSQP solution polishing (accurate active set)
     fail_decay: float = 0.9  # last torques scaled by this after each failed solve
-    hand_force_reg: float = 50.0  # regularisation of hand contact forces (units of
-    # force_scale) towards their prior: the QP leans on a held object only when it must
-    hand_force_max: float = 60.0  # [N] bound on each component of a held hand's force
+    hand_force_reg: float = 1000.0  # regularisation of a held hand's contact force (units
+    # of force_scale) towards its estimate: the QP leans on a held object only as needed
+    hand_force_max: float = 20.0  # [N] band about the estimate, per component (W)
     solver: str = "daqp"  # "daqp" (dense active set, exact, ~0.05 ms; OSQP as its fallback)
     # or "osqp" (the settings above from max_iter to polish apply to OSQP only)
 

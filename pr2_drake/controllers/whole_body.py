@@ -29,6 +29,7 @@ import numpy as np
 
 from pr2_drake.controllers.footsteps import FlatTerrain, FootstepPlanner
 from pr2_drake.controllers.gait import GaitPlanner, Phase
+from pr2_drake.controllers.hand_force import HandForceEstimator
 from pr2_drake.controllers.tasks import (
     ComTask,
     HandPositionTask,
@@ -174,6 +175,7 @@ class WholeBodyController:
                               arm_effort=self.arm_effort if self.arms_driven else None,
                               n_hands=2 if self.arms_driven else 0)
         self.q_arms_hold = m.q_nominal[m.maps.q_joints[:N_ARMS]]
+        self.hand_force = HandForceEstimator(m)
         self._hand_J = np.zeros((6, m.nv))
         self._hand_lo = np.zeros(6)
         self._hand_hi = np.zeros(6)
@@ -194,6 +196,7 @@ class WholeBodyController:
         self.qp._first = True
         self.tau_arms = np.zeros(N_ARMS)
         self.last_result = None
+        self.hand_force.reset()
 
     # The gait state, read through the planner (for tests, plots and agents).
     @property
@@ -226,6 +229,18 @@ class WholeBodyController:
             out = np.array([out[0], out[1], z_min])
         return out
 
+    def _lean(self, f_hands: np.ndarray) -> np.ndarray:
+        """Standing CoM offset (xy, W) [m] that keeps the ZMP in place under the hand forces:
+        m g dc = -sum f_xy (z_H - z_ground) (moments about the ground, quasi-static)."""
+        m = self.model
+        z_g = self.planner.plan.ground_z
+        out = np.zeros(2)
+        for side in (0, 1):
+            f = f_hands[side]
+            if f[0] != 0.0 or f[1] != 0.0:
+                out -= f[:2] * (m.hand_point(side)[0][2] - z_g)
+        return out / (m.mass * m.gravity)
+
     # ---- the tick ----------------------------------------------------------------------------
     def update(self, t: float, q: np.ndarray, v: np.ndarray, command,
                tau_arms: np.ndarray | None = None, hand_targets=None,
@@ -236,8 +251,10 @@ class WholeBodyController:
         Args:
             command: (vx, vy, yaw_rate) in the heading frame [m/s, m/s, rad/s]; clipped to the
                 limits, ValueError on NaN/inf.
-            tau_arms: the arm torques [Nm] being applied (arms="position"; e.g. the testbed's
-                measured efforts); None: assume the arm posture block's spring-damper.
+            tau_arms: the arm torques [Nm] being applied (e.g. the testbed's measured efforts).
+                arms="position": None = assume the arm posture block's spring-damper.
+                arms="effort": they give the estimate of a held hand's force
+                (:class:`HandForceEstimator`); None = the QP's own last arm torques.
             hand_targets: [left, right] p_WH [m] or None each (arms="effort"); see
                 :func:`check_hand_targets`; targets outside the workspace are clipped
                 (:meth:`clip_hand_target`).
@@ -253,13 +270,21 @@ class WholeBodyController:
         m = self.model
         m.update(q, v)
         com, comd, _, _ = m.com()
-        plan = self.planner.update(t, cmd, com, comd)
+        lean = None
+        if self.arms_driven:
+            attached = (bool(attached[0]), bool(attached[1]))
+            applied = self.tau_arms if tau_arms is None else tau_arms
+            f_hands = self.hand_force.update(t, applied, attached)
+            if attached[0] or attached[1]:
+                lean = self._lean(f_hands)
+        plan = self.planner.update(t, cmd, com, comd, lean)
         if self.arms_driven:
             for side in (0, 1):
                 h = plan.hands[side]
                 h.p = None if targets[side] is None else self.clip_hand_target(side,
                                                                              targets[side])
-                h.attached = bool(attached[side])
+                h.attached = attached[side]
+                h.force_prior = self.hand_force.f[side]
         if timed:
             t1 = time.perf_counter()
         cost = self.cost
