@@ -136,8 +136,23 @@ class QpParams:
     joint_limit_horizon: float = 0.08  # [s] braking horizon of the joint-limit rows
     polish: bool = True  # OSQP solution polishing (accurate active set)
     fail_decay: float = 0.9  # last torques scaled by this after each failed solve
+    hand_force_reg: float = 1000.0  # regularisation of a held hand's contact force (units
+    # of force_scale) towards its estimate: the QP leans on a held object only as needed
+    hand_force_max: float = 20.0  # [N] band about the estimate, per component (W)
     solver: str = "daqp"  # "daqp" (dense active set, exact, ~0.05 ms; OSQP as its fallback)
     # or "osqp" (the settings above from max_iter to polish apply to OSQP only)
+
+
+@dataclass
+class ArmParams:
+    """The arms when the whole-body QP drives them (``arms_command`` in effort mode)."""
+
+    posture: TaskGains = field(default_factory=lambda: TaskGains(100.0, 20.0, 0.1))
+    hand: TaskGains = field(default_factory=lambda: TaskGains(150.0, 25.0, 100.0))
+    # Hand targets farther than this from the shoulder are pulled back onto this sphere [m].
+    reach_max: float = 0.42
+    # ... and below this height above the ground under the robot (mean sole height) [m].
+    z_min: float = 0.25
 
 
 @dataclass
@@ -159,6 +174,7 @@ class WalkingParams:
     # Arms (position mode, posture block): stiffness [Nm/rad] and damping [Nm s/rad].
     arm_stiffness: float = 60.0
     arm_damping: float = 3.0
+    arms: ArmParams = field(default_factory=lambda: ArmParams())
 
     @staticmethod
     def load(path: str = "controllers/walking.yaml") -> "WalkingParams":
