@@ -176,6 +176,8 @@ class WholeBodyController:
                               n_hands=2 if self.arms_driven else 0)
         self.q_arms_hold = m.q_nominal[m.maps.q_joints[:N_ARMS]]
         self.hand_force = HandForceEstimator(m)
+        self._fz_max = np.zeros(2 * m.n_points)
+        self._fz_min = np.zeros(2 * m.n_points)
         self._hand_J = np.zeros((6, m.nv))
         self._hand_lo = np.zeros(6)
         self._hand_hi = np.zeros(6)
@@ -307,8 +309,11 @@ class WholeBodyController:
         mid = 0.5 * (a_lo + a_hi)
         a_lo = np.where(bad, mid, a_lo)
         a_hi = np.where(bad, mid, a_hi)
-        fz_max = np.repeat([c.fz_max for c in plan.contacts], m.n_points)
-        fz_min = np.repeat([c.fz_min for c in plan.contacts], m.n_points)
+        n = m.n_points
+        c0, c1 = plan.contacts
+        fz_max, fz_min = self._fz_max, self._fz_min
+        fz_max[:n], fz_max[n:] = c0.fz_max, c1.fz_max
+        fz_min[:n], fz_min[n:] = c0.fz_min, c1.fz_min
         hand_args = {}
         if self.arms_driven:
             fmax = p.qp.hand_force_max
