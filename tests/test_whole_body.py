@@ -162,3 +162,30 @@ def test_valve_agent_turns_the_valve_beyond_45_degrees():
     assert status.termination == "completed", status.termination
     assert status.score == 15
     assert status.memo["max_valve_angle_deg"] > 45.0
+
+
+def test_force_on_a_held_hand_is_estimated_and_leaned_against():
+    """A 30 N forward pull on the held left hand: the estimate finds it, the standing CoM leans
+    back against it (quasi-static moment balance), no fall."""
+    from pr2_drake.grasp import PickState
+
+    sim = WalkingSim(arms="effort", pick_state_from_testbed=False)
+    sim.walker.GetInputPort("pick_state").FixValue(
+        sim.walker_context, PickState(True, "left_hand", "rope"))
+    assert sim.run(1.0)
+    core = sim.walker.core
+    p_B, *_ = sim.base_pose()
+    sim.set_hand_targets([p_B + np.array([0.26, 0.14, 0.16]), None])
+    assert sim.run(1.0)
+    com0 = core.model.com()[0].copy()
+    sim.push(np.array([30.0, 0.0, 0.0]), body=sim.plant.GetBodyByName("l_arm_sphere"),
+             p_BQ=np.zeros(3))
+    assert sim.run(2.0)
+    f = core.hand_force.f[0]
+    assert abs(f[0] - 30.0) < 3.0 and np.all(np.abs(f[1:]) < 3.0), f
+    m = core.model
+    z_hand = m.hand_point(0)[0][2] - core.planner.plan.ground_z
+    lean = -30.0 * z_hand / (m.mass * m.gravity)
+    assert m.com()[0][0] - com0[0] == pytest.approx(lean, abs=0.02)
+    _, roll, pitch, _ = sim.base_pose()
+    assert abs(pitch) < 0.1 and abs(roll) < 0.1
