@@ -159,19 +159,20 @@ class WholeBodyController:
         # The QP: leg (and arm) torque limits and joint ranges from the plant.
         self.effort = m.effort[N_ARMS:]
         self.arm_effort = m.effort[:N_ARMS]
+        # Joint-range rows for the joints the QP drives (legs; arms too in effort mode), in
+        # the original joint order; knees stay bent (knee_max).
         margin = p.qp.joint_limit_margin
-        box_v = np.r_[m.v_arms, m.v_legs] if self.arms_driven else m.v_legs
         lower = m.q_lower + margin
         upper = m.q_upper - margin
         knee = [i for i, name in enumerate(ARM_JOINTS + LEG_JOINTS) if name.endswith("knee")]
         upper[knee] = np.minimum(upper[knee], p.qp.knee_max)
         sel = slice(0, None) if self.arms_driven else slice(N_ARMS, None)
         self.q_box_min, self.q_box_max = lower[sel], upper[sel]
-        self.q_box_idx = np.r_[m.maps.q_joints[:N_ARMS], m.q_legs][sel] if self.arms_driven \
-            else m.q_legs
-        self.box_v = box_v
+        self.q_box_idx = m.maps.q_joints[sel]
+        self.box_v = m.maps.v_joints[sel]
         self.qp = WholeBodyQp(m.nv, m.maps.v_base, m.v_legs, self.effort, 2 * m.n_points, p.qp,
-                              arm_v=m.v_arms, n_kin=2 * self.contacts.n_kin_foot, box_v=box_v,
+                              arm_v=m.v_arms, n_kin=2 * self.contacts.n_kin_foot,
+                              box_v=self.box_v,
                               arm_effort=self.arm_effort if self.arms_driven else None,
                               n_hands=2 if self.arms_driven else 0)
         self.q_arms_hold = m.q_nominal[m.maps.q_joints[:N_ARMS]]
