@@ -307,9 +307,10 @@ class WholeBodyController:
         a_lo = 2.0 * (self.q_box_min - q_l - v_l * hz) / (hz * hz)
         a_hi = 2.0 * (self.q_box_max - q_l - v_l * hz) / (hz * hz)
         bad = a_lo > a_hi
-        mid = 0.5 * (a_lo + a_hi)
-        a_lo = np.where(bad, mid, a_lo)
-        a_hi = np.where(bad, mid, a_hi)
+        if bad.any():
+            mid = 0.5 * (a_lo + a_hi)
+            a_lo = np.where(bad, mid, a_lo)
+            a_hi = np.where(bad, mid, a_hi)
         n = m.n_points
         c0, c1 = plan.contacts
         fz_max, fz_min = self._fz_max, self._fz_min
