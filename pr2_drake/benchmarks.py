@@ -144,7 +144,8 @@ def bench_walking(argv: list[str]) -> int:
 
 BENCHMARKS = {"sim": bench_sim, "camera": bench_camera, "startup": bench_startup,
               "walking": bench_walking}
-BENCHMARKS["whole-body"] = lambda argv: __import__("pr2_drake.bench.whole_body", fromlist=["main"]).main(argv)  # noqa: E501
+BENCHMARKS["whole-body"] = lambda argv: __import__(
+    "pr2_drake.bench.whole_body", fromlist=["main"]).main(argv)
 
 
 def run_benchmark(what: str, argv: list[str]) -> int:

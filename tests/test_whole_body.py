@@ -10,7 +10,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 from pr2_drake.bench.walking import WalkingSim
-from pr2_drake.controllers.footsteps import FixedFootstepPlanner
+from pr2_drake.controllers.footsteps import FixedFootstepPlanner, FootstepPlanner
 from pr2_drake.controllers.plan import WholeBodyPlan
 from pr2_drake.controllers.tasks import PostureTask, TaskCost
 from pr2_drake.controllers.walking_params import WalkingParams
@@ -162,3 +162,74 @@ def test_valve_agent_turns_the_valve_beyond_45_degrees():
     assert status.termination == "completed", status.termination
     assert status.score == 15
     assert status.memo["max_valve_angle_deg"] > 45.0
+
+
+def test_force_on_a_held_hand_is_estimated_and_leaned_against():
+    """A 30 N forward pull on the held left hand: the estimate finds it, the standing CoM leans
+    back against it (quasi-static moment balance), no fall."""
+    from pr2_drake.grasp import PickState
+
+    sim = WalkingSim(arms="effort", pick_state_from_testbed=False)
+    sim.walker.GetInputPort("pick_state").FixValue(
+        sim.walker_context, PickState(True, "left_hand", "rope"))
+    assert sim.run(1.0)
+    core = sim.walker.core
+    p_B, *_ = sim.base_pose()
+    sim.set_hand_targets([p_B + np.array([0.26, 0.14, 0.16]), None])
+    assert sim.run(1.0)
+    com0 = core.model.com()[0].copy()
+    sim.push(np.array([30.0, 0.0, 0.0]), body=sim.plant.GetBodyByName("l_arm_sphere"),
+             p_BQ=np.zeros(3))
+    assert sim.run(2.0)
+    f = core.hand_force.f[0]
+    assert abs(f[0] - 30.0) < 3.0 and np.all(np.abs(f[1:]) < 3.0), f
+    m = core.model
+    z_hand = m.hand_point(0)[0][2] - core.planner.plan.ground_z
+    lean = -30.0 * z_hand / (m.mass * m.gravity)
+    assert m.com()[0][0] - com0[0] == pytest.approx(lean, abs=0.02)
+    _, roll, pitch, _ = sim.base_pose()
+    assert abs(pitch) < 0.1 and abs(roll) < 0.1
+
+
+class _ThreeSteps(FootstepPlanner):
+    """The test's own footstep planner: right, left, right onto fixed footholds, then stop."""
+
+    adjustable = False  # land on the footholds (no capture-point adjustment)
+
+    def __init__(self, steps, gait):
+        self.steps = steps  # [(side, (x, y, z, yaw))]
+        self.gait = gait
+
+    def _index(self, sole, side):
+        for k, (s, f) in enumerate(self.steps):
+            if s == side and np.hypot(*(np.asarray(f[:2]) - sole[:2])) < 0.05:
+                return k
+        return -1
+
+    def keep_walking(self, command, footholds):
+        side, _ = self.steps[-1]
+        return footholds[side] is None or self._index(footholds[side], side) < 0
+
+    def first_swing_side(self, command, footholds):
+        return self.steps[0][0]
+
+    def next_steps(self, stance, stance_side, heading, command, n):
+        k = self._index(stance, stance_side)
+        out = [np.asarray(f, float) for _, f in self.steps[k + 1:k + 1 + n]]
+        while len(out) < n:  # after the last: stay (the gait stops there)
+            out.append(out[-1] if out else np.asarray(stance, float))
+        return out
+
+
+def test_own_footstep_planner_is_followed():
+    gait = WalkingParams.load().gait
+    x0 = 0.0167
+    steps = [(1, (x0 + 0.08, -0.11, 0.0, 0.0)), (0, (x0 + 0.16, 0.11, 0.0, 0.0)),
+             (1, (x0 + 0.16, -0.11, 0.0, 0.0))]
+    sim = WalkingSim(footsteps=_ThreeSteps(steps, gait))
+    assert sim.run(5.0)
+    m = sim.walker.core.model
+    for side, f in steps[1:]:
+        p = m.sole_pose(side).translation()
+        assert np.hypot(p[0] - f[0], p[1] - f[1]) < 0.02, (side, p, f)
+    assert int(sim.status()[3]) == 0  # standing again

@@ -58,10 +58,10 @@ class ValveAgentParams:
     grasp_radius: float = 0.24  # hand centre from the axis
     lift_clearance: float = 0.03  # the hand rises outside the rim's radius by this much
     angle_start_deg: float = 195.0  # in the approach frame A (180 = nearest rim point)
-    angle_end_deg: float = 115.0
+    angle_end_deg: float = 110.0
     reach_time: float = 1.5  # [s] per reach segment
     turn_speed_deg: float = 20.0  # [deg/s] hand target speed about the axis
-    release_angle_deg: float = 60.0  # hand travel about the axis before release
+    release_angle_deg: float = 70.0  # hand travel about the axis before release
     pick_timeout: float = 1.5  # [s] without attachment: retry closer to the axis
     hold_time: float = 0.5  # [s] at the end points before the next phase
 

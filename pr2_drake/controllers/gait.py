@@ -112,7 +112,7 @@ class GaitPlanner:
         self.v_correction = np.zeros(2)
         self._td_com = (0.0, np.zeros(2))
         self._t_command_change = np.inf
-        self._last_command = np.zeros(3)
+        self._last_command = [0.0, 0.0, 0.0]
         self.com_offset = None
 
     def clip_command(self, command: np.ndarray) -> np.ndarray:
@@ -141,15 +141,20 @@ class GaitPlanner:
         # The command used is rate-limited (acceleration limits), except that stopping the
         # walking (all zero) is immediate.
         lim = p.limits
-        rate = np.array([lim.accel_max, lim.accel_max, lim.yaw_accel_max]) * dt
-        if np.any(target_cmd != 0.0):
-            self.command = self.command + np.clip(target_cmd - self.command, -rate, rate)
+        # (Scalar math: three numbers per tick are cheaper than numpy calls.)
+        tc = target_cmd.tolist()
+        old = self.command.tolist()
+        if tc[0] != 0.0 or tc[1] != 0.0 or tc[2] != 0.0:
+            rates = (lim.accel_max * dt, lim.accel_max * dt, lim.yaw_accel_max * dt)
+            cmd = [c + min(max(x - c, -r), r) for x, c, r in zip(tc, old, rates)]
         else:
-            self.command = target_cmd
-        if np.any(np.abs(target_cmd - self.command) > 1e-9) or np.any(
-                np.abs(self.command - self._last_command) > 1e-9):
+            cmd = tc
+        self.command = np.array(cmd)
+        last = self._last_command
+        if any(abs(x - c) > 1e-9 for x, c in zip(tc, cmd)) or any(
+                abs(c - b) > 1e-9 for c, b in zip(cmd, last)):
             self._t_command_change = t
-        self._last_command = self.command.copy()
+        self._last_command = cmd
 
         R_WB = m.base_rotation()
         pelvis_yaw = yaw_of(R_WB)

@@ -25,8 +25,9 @@ With ``arms="position"`` (default) the arms are held by another block in positio
 
 The control law runs every ``control_period`` seconds (a periodic discrete update) and the torques
 are held in between. The gait and planner memory live in the Python object
-(:class:`pr2_drake.controllers.whole_body.WholeBodyController`), not in the Context: one controller drives one simulation at a time;
-a simulation that restarts at an earlier time resets it.
+(:class:`pr2_drake.controllers.whole_body.WholeBodyController`), not in the Context: one
+controller drives one simulation at a time; a simulation that restarts at an earlier time
+resets it.
 
 In process, without a Diagram (the PR2 platform's walking-server call)::
 

@@ -97,6 +97,7 @@ class WholeBodyModel:
         self._com = None
         self._sole = [None, None]
         self._hand = [None, None]
+        self._R_WB = None
 
     # ---- terms (cached per update: treat the returned arrays as read-only) -------------------
     def mass_matrix(self) -> np.ndarray:
@@ -189,11 +190,14 @@ class WholeBodyModel:
         return self.base.EvalPoseInWorld(self.context)
 
     def base_rotation(self) -> np.ndarray:
-        """R_WB (3x3) from the base quaternion in q (no kinematics evaluation)."""
+        """R_WB (3x3) from the base quaternion in q (no kinematics evaluation; cached)."""
+        if self._R_WB is not None:
+            return self._R_WB
         w, x, y, z = self.q[self.maps.q_base[:4]].tolist()
         n = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
         w, x, y, z = w * n, x * n, y * n, z * n
-        return np.array([
+        self._R_WB = np.array([
             [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
             [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
             [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+        return self._R_WB

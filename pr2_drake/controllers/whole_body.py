@@ -159,23 +159,26 @@ class WholeBodyController:
         # The QP: leg (and arm) torque limits and joint ranges from the plant.
         self.effort = m.effort[N_ARMS:]
         self.arm_effort = m.effort[:N_ARMS]
+        # Joint-range rows for the joints the QP drives (legs; arms too in effort mode), in
+        # the original joint order; knees stay bent (knee_max).
         margin = p.qp.joint_limit_margin
-        box_v = np.r_[m.v_arms, m.v_legs] if self.arms_driven else m.v_legs
         lower = m.q_lower + margin
         upper = m.q_upper - margin
         knee = [i for i, name in enumerate(ARM_JOINTS + LEG_JOINTS) if name.endswith("knee")]
         upper[knee] = np.minimum(upper[knee], p.qp.knee_max)
         sel = slice(0, None) if self.arms_driven else slice(N_ARMS, None)
         self.q_box_min, self.q_box_max = lower[sel], upper[sel]
-        self.q_box_idx = np.r_[m.maps.q_joints[:N_ARMS], m.q_legs][sel] if self.arms_driven \
-            else m.q_legs
-        self.box_v = box_v
+        self.q_box_idx = m.maps.q_joints[sel]
+        self.box_v = m.maps.v_joints[sel]
         self.qp = WholeBodyQp(m.nv, m.maps.v_base, m.v_legs, self.effort, 2 * m.n_points, p.qp,
-                              arm_v=m.v_arms, n_kin=2 * self.contacts.n_kin_foot, box_v=box_v,
+                              arm_v=m.v_arms, n_kin=2 * self.contacts.n_kin_foot,
+                              box_v=self.box_v,
                               arm_effort=self.arm_effort if self.arms_driven else None,
                               n_hands=2 if self.arms_driven else 0)
         self.q_arms_hold = m.q_nominal[m.maps.q_joints[:N_ARMS]]
         self.hand_force = HandForceEstimator(m)
+        self._fz_max = np.zeros(2 * m.n_points)
+        self._fz_min = np.zeros(2 * m.n_points)
         self._hand_J = np.zeros((6, m.nv))
         self._hand_lo = np.zeros(6)
         self._hand_hi = np.zeros(6)
@@ -304,11 +307,15 @@ class WholeBodyController:
         a_lo = 2.0 * (self.q_box_min - q_l - v_l * hz) / (hz * hz)
         a_hi = 2.0 * (self.q_box_max - q_l - v_l * hz) / (hz * hz)
         bad = a_lo > a_hi
-        mid = 0.5 * (a_lo + a_hi)
-        a_lo = np.where(bad, mid, a_lo)
-        a_hi = np.where(bad, mid, a_hi)
-        fz_max = np.repeat([c.fz_max for c in plan.contacts], m.n_points)
-        fz_min = np.repeat([c.fz_min for c in plan.contacts], m.n_points)
+        if bad.any():
+            mid = 0.5 * (a_lo + a_hi)
+            a_lo = np.where(bad, mid, a_lo)
+            a_hi = np.where(bad, mid, a_hi)
+        n = m.n_points
+        c0, c1 = plan.contacts
+        fz_max, fz_min = self._fz_max, self._fz_min
+        fz_max[:n], fz_max[n:] = c0.fz_max, c1.fz_max
+        fz_min[:n], fz_min[n:] = c0.fz_min, c1.fz_min
         hand_args = {}
         if self.arms_driven:
             fmax = p.qp.hand_force_max
