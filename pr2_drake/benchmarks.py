@@ -10,6 +10,8 @@
         the time from invoking the command to its first simulated step.
     pr2-drake bench walking [...]
         the walking controller's benchmark (pr2_drake.bench.walking).
+    pr2-drake bench perception [--views 100] [--qualities low,medium,high]
+        the task-6 object detector on rendered head-camera views (pr2_drake.bench.perception).
 """
 
 from __future__ import annotations
@@ -142,8 +144,14 @@ def bench_walking(argv: list[str]) -> int:
     return walking_main(argv)
 
 
+def bench_perception(argv: list[str]) -> int:
+    from pr2_drake.bench.perception import main as perception_main
+
+    return perception_main(argv)
+
+
 BENCHMARKS = {"sim": bench_sim, "camera": bench_camera, "startup": bench_startup,
-              "walking": bench_walking}
+              "walking": bench_walking, "perception": bench_perception}
 
 
 def run_benchmark(what: str, argv: list[str]) -> int:

@@ -127,6 +127,8 @@ class ObjectModel:
     height: float
     extents: tuple[float, float]
     colour: np.ndarray  # HUE_BINS + 1 shares summing to 1 (last: grey)
+    widths: tuple[float, float] = (0.0, 0.0)  # horizontal width across a view, min/max over yaw
+    flat_share: float = 0.0  # share of the seen area that faces up, viewed from 35 deg above
 
 
 def colour_signature(rgb: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
@@ -179,8 +181,22 @@ def load_object_model(name: str, mesh: str | Path) -> ObjectModel:
                                 axis=1)
     colours = np.array([kd.get(m, [0.5, 0.5, 0.5]) for m in mats])
     ext = np.sort(v[:, :2].max(0) - v[:, :2].min(0))[::-1]
+    yaws = np.radians(np.arange(0, 180, 5))
+    proj = v[:, :2] @ np.stack([np.cos(yaws), np.sin(yaws)])
+    widths = proj.max(0) - proj.min(0)
+    # Expected share of pixels on up-facing faces, seen from 35 deg elevation, any azimuth.
+    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+    el = math.radians(35.0)
+    seen = up = 0.0
+    for az in np.radians(np.arange(0, 360, 45)):
+        d = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+        proj_area = area * np.maximum(n @ d, 0.0)
+        seen += proj_area.sum()
+        up += proj_area[n[:, 2] > 0.93].sum()
     return ObjectModel(name, float(v[:, 2].max() - v[:, 2].min()),
-                       (float(ext[0]), float(ext[1])), colour_signature(colours, area))
+                       (float(ext[0]), float(ext[1])), colour_signature(colours, area),
+                       (float(widths.min()), float(widths.max())), float(up / seen))
 
 
 def object_models_from_priors(priors: dict) -> dict[str, ObjectModel]:
@@ -211,7 +227,8 @@ class DetectorParams:
     support_gap: float = 0.03
     support_ring: float = 0.15
     size_weight: float = 1.0
-    min_score: float = 0.15
+    flat_weight: float = 1.0
+    min_score: float = 0.3
 
     @staticmethod
     def load(path: str = DEFAULT_PARAMS) -> "DetectorParams":
@@ -287,6 +304,7 @@ class ObjectDetector:
         if depth.shape != (self.K.height, self.K.width) or rgb.shape[:2] != depth.shape:
             raise ValueError(f"frame {rgb.shape} / {depth.shape} does not match the camera "
                              f"{self.K.width}x{self.K.height}")
+        self._camera_xy = X_WC.translation()[:2]
         valid = np.isfinite(depth) & (depth > P.min_range) & (depth < P.max_range)
         pts = points_in_world(np.where(valid, depth, np.nan), self.K, X_WC)
         z = pts[:, :, 2]
@@ -312,7 +330,7 @@ class ObjectDetector:
             x0, y0, w, h = (int(stats[i, k]) for k in (cv2.CC_STAT_LEFT, cv2.CC_STAT_TOP,
                                                         cv2.CC_STAT_WIDTH, cv2.CC_STAT_HEIGHT))
             sub = labels[y0:y0 + h, x0:x0 + w] == i
-            det = self._cluster(sub, (x0, y0, w, h), pts, plane_id, levels, hsv_rgb)
+            det = self._cluster(sub, (x0, y0, w, h), pts, plane_id, levels, hsv_rgb, horizontal)
             if det is not None:
                 out.append(det)
         out.sort(key=lambda d: -d.score)
@@ -376,7 +394,7 @@ class ObjectDetector:
         edge[:-1] |= jy
         return edge
 
-    def _cluster(self, mask, box, pts, plane_id, levels, rgb) -> Optional[Detection]:
+    def _cluster(self, mask, box, pts, plane_id, levels, rgb, horizontal) -> Optional[Detection]:
         P = self.params
         x0, y0, w, h = box
         p = pts[y0:y0 + h, x0:x0 + w][mask]
@@ -411,12 +429,20 @@ class ObjectDetector:
         if a > P.max_extent:
             return why.append((box, f"extent {a:.2f}")) or None
         colour = colour_signature(rgb[y0:y0 + h, x0:x0 + w][mask])
+        # Width across the line of sight: fully visible whatever hides the back.
+        view = p[:, :2].mean(0) - self._camera_xy
+        across = np.array([-view[1], view[0]]) / max(np.linalg.norm(view), 1e-9)
+        s_across = p[:, :2] @ across
+        width = float(np.percentile(s_across, 99) - np.percentile(s_across, 1))
+        flat = float(horizontal[y0:y0 + h, x0:x0 + w][mask].mean())
         scores = {}
         for name, m in self.models.items():
             similarity = float(np.minimum(_blur(colour), _blur(m.colour)).sum())
-            mismatch = (abs(rise - m.height) / max(m.height, 0.04)
-                        + 0.5 * abs(a - m.extents[0]) / m.extents[0]
-                        + 0.5 * abs(b - m.extents[1]) / m.extents[1])
+            w_lo, w_hi = m.widths
+            mismatch = (abs(math.log(max(rise, 1e-3) / m.height))
+                        + abs(math.log(min(max(width, w_lo), w_hi) / max(width, 1e-3)))
+                        + max(0.0, math.log(a / m.extents[0]))  # never longer than the model
+                        + P.flat_weight * abs(flat - m.flat_share))
             scores[name] = similarity - P.size_weight * mismatch
         label = max(scores, key=scores.get)
         if scores[label] < P.min_score:
