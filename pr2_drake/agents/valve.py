@@ -37,6 +37,7 @@ from pydrake.systems.framework import BasicVector, Diagram, DiagramBuilder, Leaf
 
 from pr2_drake.agents.walk_to_goal import GoalPlannerParams, goal_velocity, yaw_from_quaternion
 from pr2_drake.grasp import PickState
+from pr2_drake.lifetime import weak_calc
 from pr2_drake.paths import resolve_user_path
 from pr2_drake.ports import BODY_STATE_SIZE, JOINT_STATE_SIZE, P_WB, QUAT_WB
 
@@ -96,12 +97,14 @@ class ValveSequencer(LeafSystem):
     ``pick`` (str), ``release`` (bool), ``stage`` (1).
     """
 
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
     HAND = 0  # left
 
     def __init__(self, center, rim_radius: float, params: ValveAgentParams | None = None,
                  goal_params: GoalPlannerParams | None = None):
         super().__init__()
-        from pr2_drake.controllers.wb_model import WholeBodyModel
+from pr2_drake.controllers.wb_model import WholeBodyModel
 
         self.center = np.asarray(center, dtype=float).reshape(-1)
         if self.center.shape != (3,) or not np.all(np.isfinite(self.center)):
@@ -119,15 +122,18 @@ class ValveSequencer(LeafSystem):
         # (which write the stage into this discrete state), not with the inputs.
         self._stage_state = self.DeclareDiscreteState(1)
         after_update = {self.all_state_ticket()}
-        self.DeclareVectorOutputPort("velocity_command", 3, self._calc_cmd,
+        self.DeclareVectorOutputPort("velocity_command", 3, weak_calc(self._calc_cmd),
                                      prerequisites_of_calc=after_update)
         self.DeclareAbstractOutputPort("hand_targets", lambda: AbstractValue.Make([None, None]),
-                                       self._calc_targets, prerequisites_of_calc=after_update)
-        self.DeclareAbstractOutputPort("pick", lambda: AbstractValue.Make(""), self._calc_pick,
+                                       weak_calc(self._calc_targets),
+                                       prerequisites_of_calc=after_update)
+        self.DeclareAbstractOutputPort("pick", lambda: AbstractValue.Make(""),
+                                       weak_calc(self._calc_pick),
                                        prerequisites_of_calc=after_update)
         self.DeclareAbstractOutputPort("release", lambda: AbstractValue.Make(False),
-                                       self._calc_release, prerequisites_of_calc=after_update)
-        self.DeclareVectorOutputPort("stage", 1, self._calc_stage,
+                                       weak_calc(self._calc_release),
+                                       prerequisites_of_calc=after_update)
+        self.DeclareVectorOutputPort("stage", 1, weak_calc(self._calc_stage),
                                      prerequisites_of_calc=after_update)
         self.DeclarePeriodicUnrestrictedUpdateEvent(self.p.period, 0.0, self._update)
         self.reset()
@@ -332,6 +338,8 @@ class ValveAgent(Diagram):
         priors: the task's priors; needs ``valve_center`` (x, y, z) in world [m].
         params: sequencer YAML (default controllers/valve_agent.yaml).
     """
+
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
     def __init__(self, priors: dict[str, Any], params: str | None = None):
         super().__init__()
