@@ -41,6 +41,8 @@ class JumpParams:
     landing_xy: TaskGains = field(default_factory=lambda: TaskGains(30.0, 10.0, 300.0))
     joint_limit_horizon: float = 0.02
     angular_momentum: TaskGains = field(default_factory=lambda: TaskGains(0.0, 10.0, 10.0))
+    launch_angular_momentum_weight: float = 100.0
+    launch_pelvis_scale: float = 0.03
     soles: TaskGains = field(default_factory=lambda: TaskGains(600.0, 50.0, 1000.0))
     soles_rot: TaskGains = field(default_factory=lambda: TaskGains(300.0, 35.0, 100.0))
     load_ramp: float = 0.02

@@ -169,13 +169,12 @@ class JumpPlanner:
         ph = self.phase
         if ph == JumpPhase.CROUCH and t >= self.t_launch - 1e-9:
             self._go(JumpPhase.LAUNCH, t)
-            self.c_launch = com.copy()
-            self.c_launch[:2] = self.c_crouch[:2]
-            self.c_launch[2] = self.ground + p.crouch_height
+            self.c_launch = com.copy()  # (the launch starts where the crouch ended)
             vz = req.vertical_speed(self.g)
             self.v_to = np.r_[self.v_to_xy, vz]
             self.c_to = self.c_launch + 0.5 * self.v_to * self.T_launch
             self.c_to[2] = self.ground + p.takeoff_height
+            self.T_launch = max(1e-3, req.t_takeoff - t)
         if self.phase == JumpPhase.LAUNCH and t >= req.t_takeoff - 1e-9:
             self._go(JumpPhase.FLIGHT, t)
             self.log.update(t_takeoff=t, com_takeoff=com.copy(), comd_takeoff=comd.copy())
@@ -242,6 +241,7 @@ class JumpPlanner:
         plan.phase = int(ph)
         plan.stance = -1
         plan.soles = [None, None]
+        plan.pelvis_scale = 1.0
         L = m.plant.CalcSpatialMomentumInWorldAboutPoint(m.context, com).rotational()
         self.L = L
         plan.L_rate = -p.angular_momentum.kd * L
@@ -256,6 +256,11 @@ class JumpPlanner:
         elif ph == JumpPhase.LAUNCH:
             plan.com_acc = self._launch_acc(t, com, comd)
             plan.com_weight = np.full(3, p.com_launch_weight)
+            # The moment of the MPC's first-knot forces about the CoM: Ldot as planned.
+            f0 = self.mpc_solution.forces[0]
+            plan.L_rate = np.cross(self._pts - com, f0).sum(axis=0)
+            plan.L_weight = p.launch_angular_momentum_weight
+            plan.pelvis_scale = p.launch_pelvis_scale
         elif ph == JumpPhase.FLIGHT:
             plan.com_acc = g_W
             plan.com_weight = np.zeros(3)

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pr2_drake.controllers.plan import SwingReference, WholeBodyPlan
-from pr2_drake.controllers.tasks import SwingSoleTask, Task
+from pr2_drake.controllers.tasks import PelvisOrientationTask, SwingSoleTask, Task
 from pr2_drake.controllers.walking_params import TaskGains
 
 
@@ -25,6 +25,8 @@ class JumpPlan(WholeBodyPlan):
         com_acc: desired CoM acceleration a_WCcm [m/s^2] (W), already a feedback law.
         com_weight: QP weight of its x, y, z rows (0: no CoM task, e.g. in flight).
         soles: per sole (0 left, 1 right) a reference, or None (in contact or free).
+        pelvis_scale: factor on the pelvis orientation weight (the launch lets the torso pitch
+            so that the angular momentum stays small: with both soles fixed the two conflict).
         L_rate: desired rate of the centroidal angular momentum [N m] (W), already a feedback
             law; L_weight: its QP weight (0: none, e.g. in flight, where it is conserved).
     """
@@ -33,6 +35,7 @@ class JumpPlan(WholeBodyPlan):
     com_weight: np.ndarray = field(default_factory=lambda: np.zeros(3))
     L_rate: np.ndarray = field(default_factory=lambda: np.zeros(3))
     L_weight: float = 0.0
+    pelvis_scale: float = 1.0  # times the pelvis orientation task's weight
     soles: list[SwingReference | None] = field(default_factory=lambda: [None, None])
 
 
@@ -76,6 +79,18 @@ class AngularMomentumTask(Task):
             return
         A, b = self.matrices(model)
         cost.add(A, plan.L_rate - b, np.full(3, plan.L_weight))
+
+
+class ScaledPelvisTask(PelvisOrientationTask):
+    """:class:`PelvisOrientationTask` with its weight times ``plan.pelvis_scale``."""
+
+    def add_to(self, cost, model, plan) -> None:
+        w0 = self.w
+        self.w = w0 * plan.pelvis_scale
+        try:
+            super().add_to(cost, model, plan)
+        finally:
+            self.w = w0
 
 
 class _OneSwing:

@@ -37,8 +37,13 @@ from pr2_drake.controllers.footsteps import FlatTerrain, FootstepPlanner
 from pr2_drake.controllers.gait import Phase, yaw_of
 from pr2_drake.controllers.jump_params import JumpParams
 from pr2_drake.controllers.jump_planner import JumpPhase, JumpPlanner, JumpRequest
-from pr2_drake.controllers.jump_tasks import AngularMomentumTask, Com3dTask, JumpPlan, SolesTask
-from pr2_drake.controllers.tasks import PelvisOrientationTask
+from pr2_drake.controllers.jump_tasks import (
+    AngularMomentumTask,
+    Com3dTask,
+    JumpPlan,
+    ScaledPelvisTask,
+    SolesTask,
+)
 from pr2_drake.controllers.walking import WalkingController, obs_to_vectors
 from pr2_drake.controllers.walking_params import WalkingParams
 from pr2_drake.controllers.whole_body import COMMAND_PORT, TickInfo, WholeBodyController, \
@@ -100,7 +105,7 @@ class JumpCore:
         wp = core.params
         fz_max = wp.qp.fz_max_factor * m.mass * m.gravity
         self.planner = JumpPlanner(self.params, m, wp.gait.stand_com_height, fz_max)
-        self.tasks = [Com3dTask(), AngularMomentumTask(m), PelvisOrientationTask(wp.pelvis, m),
+        self.tasks = [Com3dTask(), AngularMomentumTask(m), ScaledPelvisTask(wp.pelvis, m),
                       core.contacts,
                       SolesTask(p.soles, p.soles_rot), core.posture]
         self.reset()
