@@ -10,6 +10,8 @@
         the time from invoking the command to its first simulated step.
     pr2-drake bench walking [...]
         the walking controller's benchmark (pr2_drake.bench.walking).
+    pr2-drake bench jumping [...]
+        vertical and forward jumps of the jump controller (pr2_drake.bench.jumping).
 """
 
 from __future__ import annotations
@@ -144,6 +146,7 @@ def bench_walking(argv: list[str]) -> int:
 
 BENCHMARKS = {"sim": bench_sim, "camera": bench_camera, "startup": bench_startup,
               "walking": bench_walking}
+BENCHMARKS["jumping"] = lambda argv: __import__("pr2_drake.bench.jumping", fromlist=["main"]).main(argv)  # noqa: E501
 BENCHMARKS["whole-body"] = lambda argv: __import__("pr2_drake.bench.whole_body", fromlist=["main"]).main(argv)  # noqa: E501
 
 

@@ -300,7 +300,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_eval)
 
     p = sub.add_parser("bench", help="benchmarks: sim, camera, startup, walking")
-    p.add_argument("what", choices=("sim", "camera", "startup", "walking", "whole-body", "all"))
+    p.add_argument("what", choices=("sim", "camera", "startup", "walking", "whole-body",
+                                    "jumping", "all"))
     p.add_argument("rest", nargs=argparse.REMAINDER, help="options of that benchmark")
     p.set_defaults(func=cmd_bench)
 
