@@ -52,6 +52,19 @@ class JumpParams:
     def load(path: str = "controllers/jumping.yaml") -> "JumpParams":
         filename = resolve_user_path(path, "jump controller parameters")
         p = yaml_load_typed(schema=JumpParams, filename=str(filename))
-        if not p.crouch_height < p.takeoff_height:
-            raise ValueError("jumping: crouch_height must be below takeoff_height")
+        p.check()
         return p
+
+    def with_overrides(self, path: str) -> "JumpParams":
+        """A copy with the entries of a (partial) YAML file replacing these."""
+        import copy
+
+        filename = resolve_user_path(path, "jump controller parameter overrides")
+        p = yaml_load_typed(schema=JumpParams, filename=str(filename),
+                            defaults=copy.deepcopy(self))
+        p.check()
+        return p
+
+    def check(self) -> None:
+        if not self.crouch_height < self.takeoff_height:
+            raise ValueError("jumping: crouch_height must be below takeoff_height")
