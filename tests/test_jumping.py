@@ -139,3 +139,31 @@ def test_in_process_command_validates_the_jump():
         jumper.command(obs, jump=(1.0, 0.0, 0.0, -0.05), t=0.0)
     out = jumper.command(obs, jump=(1.0, 0.0, 0.0, 0.05), t=0.0)
     assert out["ctrl_mode"] == "effort" and out["joint_values"].shape == (10,)
+
+
+def test_bar_takeoff_timing_centres_the_passage_in_the_clear_window():
+    from pr2_drake.agents.moving_bar import MovingBarParams, takeoff_time
+
+    p = MovingBarParams.load()
+    soles = np.array([[0.0, 0.11], [0.0, -0.11]])
+    bar = np.array([0.0, -0.8])
+    timing = takeoff_time(2.0, soles, bar, np.array([0.0, 1.0]), 0.05, p)
+    s_rel = 1.0 + p.lateral_speed
+    w = 0.025 + p.sole_half_width + p.band_margin
+    # Bar position relative to the soles along its motion at take-off, then after it.
+    u_to = soles[:, 1] - (bar[1] + (timing.t_takeoff - 2.0))
+    first_in = (u_to.min() - w) / s_rel
+    last_out = (u_to.max() + w) / s_rel
+    assert first_in - p.clear_from == pytest.approx(p.clear_until - last_out)
+    assert timing.spare == pytest.approx((p.clear_until - p.clear_from) - (last_out - first_in))
+    assert timing.spare > 0.0  # the measured window holds the passage, with time to spare
+    np.testing.assert_allclose(timing.velocity_W, [0.0, -p.lateral_speed])  # against the bar
+
+
+def test_moving_bar_agent_jumps_over_the_bar_without_touching_it():
+    from pr2_drake.episode import run_episode
+    from pr2_drake.scenario import Scenario
+
+    report = run_episode(Scenario(task=3, seed=0))
+    assert report["score"] == 15.0 and report["termination"] == "completed"
+    assert [e["item"] for e in report["items"]] == ["jump_over"]  # no bar contact

@@ -110,23 +110,36 @@ class BarJumpPlanner(LeafSystem):
                                      prerequisites_of_calc={self.discrete_state_ticket(
                                          self._cmd)})
         self.timing: JumpTiming | None = None
+        self._samples: list = []
 
     def _update(self, context, state) -> None:
         cmd = state.get_mutable_vector(self._cmd)
         if np.any(cmd.get_value()):
             return  # one request per episode
         fb = self._fb.Eval(context)
+        t = context.get_time()
         v = np.asarray(fb.get("bar_velocity", np.zeros(3)), float)[:2]
-        if float(np.hypot(*v)) < self.params.min_bar_speed:
+        pos = np.asarray(fb.get("bar_position", np.zeros(3)), float)[:2]
+        hist = self._samples
+        hist.append((t, pos))
+        del hist[:-4]
+        if float(np.hypot(*v)) < self.params.min_bar_speed or len(hist) < 4:
             return
+        # Wait for a steady speed: the bar's drive overshoots for a few tens of ms after it
+        # starts, and the timing divides by the speed. Use the speed from positions (finite
+        # differences over the last samples) once three agree within 1 %.
+        fd = [(hist[k + 1][1] - hist[k][1]) / (hist[k + 1][0] - hist[k][0]) for k in range(3)]
+        sp = [float(np.hypot(*f)) for f in fd]
+        if max(sp) - min(sp) > 0.01 * max(sp):
+            return
+        v = fd[-1]
         body = self._body.Eval(context)
         yaw = yaw_from_quaternion(body[QUAT_WB])
         c, s = math.cos(yaw), math.sin(yaw)
         p = body[P_WB][:2]
         hw = self.params.hip_half_width
         soles = np.array([p + hw * np.array([-s, c]), p - hw * np.array([-s, c])])
-        timing = takeoff_time(context.get_time(), soles, np.asarray(fb["bar_position"])[:2], v,
-                              self.bar_width, self.params)
+        timing = takeoff_time(t, soles, pos, v, self.bar_width, self.params)
         self.timing = timing
         v_H = np.array([c * timing.velocity_W[0] + s * timing.velocity_W[1],
                         -s * timing.velocity_W[0] + c * timing.velocity_W[1]])
