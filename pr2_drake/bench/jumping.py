@@ -274,7 +274,11 @@ def main(argv: list[str] | None = None) -> int:
     print(f"highest reliable vertical jump (no fall, apex >= 80 % of the request, all repeats): "
           f"requested apex {best:.2f} m")
     for d in [float(x) for x in a.forward.split(",") if x]:
-        name, rs = _case(a.forward_apex, d, repeats)
+        try:
+            name, rs = _case(a.forward_apex, d, repeats)
+        except ValueError as e:  # e.g. a horizontal speed beyond the controller's max_speed
+            print(f"apex {a.forward_apex:.2f} fwd {d:.2f}    rejected: {e}", flush=True)
+            continue
         print(_row(name, rs), flush=True)
     print("columns: apxC = CoM rise above take-off [m]; riseC = CoM max above standing [m]; "
           "sole = max of the lower sole's lowest point [m]; air = both soles > 5 mm [s]; "
