@@ -14,9 +14,12 @@ Eliminating the states (condensing) leaves a dense QP over the forces alone:
     s.t. |f_x|, |f_y| <= mu f_z (pyramid),   0 <= f_z <= f_z,max,ki,
 
 with f_z,max = 0 for the knots after take-off (the contact schedule) and, before it, the largest
-normal force the leg can hold within its peak joint torques (:func:`leg_force_limits`). The
-problem is built once (constant blocks precomputed); each solve updates the moment-arm blocks,
-the cost vectors and the bounds in place and calls DAQP (OSQP-free: ~0.2-1 ms on this size).
+normal force the leg can hold within its peak joint torques (:func:`leg_force_limits`). The knots
+before take-off split the time to take-off evenly, so that one ends exactly at take-off. The
+problem (144 forces, 192 pyramid rows, bounds) is allocated once; each solve rebuilds the small
+condensed matrices for the current knots (numpy, no symbolic program), updates the bounds in
+place and calls DAQP: about 2 ms median per solve here (bench jumping), run every 4 ms tick of
+the launch only.
 """
 
 # (No ``from __future__ import annotations``: yaml_load_typed reads MpcParams' field types.)
