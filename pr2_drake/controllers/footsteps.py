@@ -94,6 +94,12 @@ class FlatTerrain:
         """
         return float(stance[2]), 0.0
 
+    def swing_clearance(self, start: np.ndarray, target: np.ndarray) -> float | None:
+        """Height [m, W] a swing sole from ``start`` to ``target`` (x, y, z, yaw) must clear
+        (it lifts, moves, then lowers: :class:`pr2_drake.controllers.swing.SwingTrajectory`),
+        or None for the plain swing curve (no edge on the way; the default)."""
+        return None
+
 
 class SlopeTerrain(FlatTerrain):
     """A planar incline of known angle between a lower and an upper level (the task-4 prior).

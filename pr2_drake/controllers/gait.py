@@ -495,6 +495,9 @@ class GaitPlanner:
         z, pitch = self.terrain.foothold(stance, slope, self.swing.target)
         self.swing.target[2] = z
         self.swing.pitch_target = pitch
+        self.swing.clear_z = self.terrain.swing_clearance(self.swing.start, self.swing.target)
+        g = self.params.gait
+        self.swing.clear_fractions = (g.swing_clear_lift, g.swing_clear_lower)
 
     def _planned_dcm_offset(self) -> np.ndarray:
         """Periodic DCM offset b (xy, W) at the switch onto the planned swing target."""

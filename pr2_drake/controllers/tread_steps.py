@@ -1,0 +1,139 @@
+"""Footholds on treads: velocity footsteps moved so that heel and toe stand on one level.
+
+:class:`TreadFootstepPlanner` (a :class:`pr2_drake.controllers.footsteps.FootstepPlanner`) asks
+the velocity planner for each next footstep, then, when that sole (plus ``edge_margin`` beyond
+heel and toe) would straddle an edge of the terrain (:class:`pr2_drake.controllers.
+terrain_model.PatchTerrain`), moves it along the sole's x axis: back, so that the toe stops
+short of the edge, or forward onto the next level, so that the heel is past it. Back wins when
+it is the smaller move and still makes ``min_progress``; forward must stay within the stride
+limit. Its height is the terrain's under it. The robot thus takes two steps per 0.40 m tread:
+step-ups and step-downs land with the whole sole on the tread, away from the nosing.
+
+A riser taller than ``max_step_height`` is refused: the constructor raises ValueError naming
+the terrain and the riser (:meth:`PatchTerrain.risers`); at run time a step that would need one
+(terrain not described by its patches) stays in front of the edge, and the robot marks time.
+
+Parameters: controllers/tread_planner.yaml. Units m, rad; frames W, sole S (x forward).
+
+(No ``from __future__ import annotations``: ``yaml_load_typed`` reads the field types.)
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.common.yaml import yaml_load_typed
+
+from pr2_drake.controllers.footsteps import FootstepPlanner, VelocityFootstepPlanner
+from pr2_drake.controllers.terrain_model import LEVEL_TOLERANCE, PatchTerrain
+from pr2_drake.controllers.walking_params import GaitParams
+from pr2_drake.paths import resolve_user_path
+
+
+@dataclass
+class TreadPlannerParams:
+    """See controllers/tread_planner.yaml (m)."""
+
+    edge_margin: float = 0.03  # heel and toe stay this far from an edge
+    clearance: float = 0.05  # swing soles clear the highest ground on their way by this
+    max_step_height: float = 0.15  # taller risers are refused
+    min_progress: float = 0.03  # a step moved back must still advance this much
+
+    @staticmethod
+    def load(path: str = "controllers/tread_planner.yaml") -> "TreadPlannerParams":
+        return yaml_load_typed(schema=TreadPlannerParams,
+                               filename=str(resolve_user_path(path, "tread planner parameters")))
+
+
+class TreadFootstepPlanner(FootstepPlanner):
+    """Velocity footsteps on treads (see the module docstring).
+
+    Args:
+        gait: step period, width and limits (the stride limit of forward moves).
+        start_threshold: |command| above this starts walking [m/s, rad/s].
+        terrain: the terrain (its ``edge_margin`` and ``clearance`` are set from ``params``).
+        params: planner parameters (None: controllers/tread_planner.yaml).
+
+    Raises:
+        ValueError: the terrain has a riser taller than ``params.max_step_height``.
+    """
+
+    adjustable = False  # footholds land where planned (on the tread), not where the DCM says
+
+    def __init__(self, gait: GaitParams, start_threshold: float, terrain: PatchTerrain,
+                 params: "TreadPlannerParams | None" = None):
+        self.params = p = params or TreadPlannerParams.load()
+        self.gait = gait
+        self.terrain = terrain
+        terrain.edge_margin = p.edge_margin
+        terrain.clearance = p.clearance
+        self.velocity = VelocityFootstepPlanner(gait, start_threshold)
+        for x, dz in terrain.risers():
+            if abs(dz) > p.max_step_height + 1e-9:
+                raise ValueError(
+                    f"TreadFootstepPlanner: {terrain!r} has a {abs(dz):.3f} m riser at x = "
+                    f"{x:.3f} m, taller than the planner's limit max_step_height = "
+                    f"{p.max_step_height:.3f} m")
+
+    def keep_walking(self, command, footholds) -> bool:
+        return self.velocity.keep_walking(command, footholds)
+
+    def first_swing_side(self, command, footholds) -> int:
+        return self.velocity.first_swing_side(command, footholds)
+
+    def next_steps(self, stance, stance_side, heading, command, n):
+        steps = []
+        side = stance_side
+        for _ in range(n):
+            proposed = self.velocity.next_steps(stance, side, heading, command, 1)[0]
+            stance = self.on_tread(proposed, stance)
+            side = 1 - side
+            steps.append(stance)
+        return steps
+
+    def on_tread(self, target: np.ndarray, stance: np.ndarray) -> np.ndarray:
+        """``target`` (x, y, z, yaw) moved along its x axis onto one level (see the module
+        docstring), with the terrain height; ``stance`` is the sole it steps from."""
+        t = self.terrain
+        p = self.params
+        half = 0.5 * t.foot_length + p.edge_margin
+        yaw = float(target[3])
+        c, s = math.cos(yaw), math.sin(yaw)
+        x, y = float(target[0]), float(target[1])
+        z_stance = t.height(float(stance[0]), float(stance[1]))
+
+        def advance(d: float) -> float:  # progress along yaw from the stance sole
+            return c * (x + c * d - stance[0]) + s * (y + s * d - stance[1])
+
+        def level(d: float) -> float | None:  # the height under the sole moved by d, or None
+            z = t.heights_along(x + c * d, y + s * d, yaw, -half, half)
+            return float(z[0]) if z.max() - z.min() < LEVEL_TOLERANCE else None
+
+        options = []
+        for direction in (-1.0, 1.0):
+            d = 0.0
+            for _ in range(6):  # past up to a few short treads
+                if level(d) is not None:
+                    break
+                edges = t.edges_along(x + c * d, y + s * d, yaw, -half, half)
+                d += (edges[0] - half) if direction < 0 else (edges[-1] + half)
+                d += direction * 1e-3
+            z = level(d)
+            if z is not None:
+                options.append((d, z))
+        reach = self.gait.max_step_forward + 0.05
+        ok = [(d, z) for d, z in options
+              if abs(z - z_stance) <= p.max_step_height + 1e-9 and advance(d) <= reach]
+        if not ok:  # refused (riser too tall or too far): stay at the stance sole's level
+            ok = [(d, z) for d, z in options if abs(z - z_stance) < LEVEL_TOLERANCE] or [
+                (0.0, z_stance)]
+        back = [o for o in ok if o[0] <= 0.0]
+        fwd = [o for o in ok if o[0] > 0.0]
+        if back and (not fwd or (advance(back[0][0]) >= p.min_progress
+                                 and abs(back[0][0]) <= abs(fwd[0][0]))):
+            d, z = back[0]
+        elif fwd:
+            d, z = fwd[0]
+        else:
+            d, z = back[0]
+        return np.array([x + c * d, y + s * d, z, yaw])
