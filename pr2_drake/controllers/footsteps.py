@@ -178,6 +178,11 @@ class FootstepPlanner:
         the other side, then alternating."""
         raise NotImplementedError
 
+    def constrain(self, target_xy: np.ndarray, planned: np.ndarray) -> np.ndarray:
+        """Where an adjusted landing point (xy, W) of the planned footstep ``planned`` (x, y,
+        z, yaw) may go (e.g. kept on its tread); step adjustment calls it. Default: anywhere."""
+        return target_xy
+
 
 class VelocityFootstepPlanner(FootstepPlanner):
     """Footsteps from the velocity command (:func:`next_footstep`), clamped per step.

@@ -470,7 +470,7 @@ class GaitPlanner:
                              self.heading, earliest, planned, latest, t_now_land, g, omega)
         if abs(choice.landing_time - t_now_land) > 1e-6:
             sw.retime(t, choice.landing_time)
-        target_xy = choice.target_xy - (plan_zmp - plan[:2])
+        target_xy = self.footsteps.constrain(choice.target_xy - (plan_zmp - plan[:2]), plan)
         # Move the swing target at a bounded speed so the swing curve stays smooth.
         step = target_xy - self.swing.target[:2]
         max_step = g.retarget_speed * max(t - self._t_retarget, 0.0)

@@ -58,7 +58,9 @@ class TreadFootstepPlanner(FootstepPlanner):
         ValueError: the terrain has a riser taller than ``params.max_step_height``.
     """
 
-    adjustable = False  # footholds land where planned (on the tread), not where the DCM says
+    # Step adjustment (capture point) may move a landing point, sideways freely and along the
+    # sole only within its tread (:meth:`constrain`).
+    adjustable = True
 
     def __init__(self, gait: GaitParams, start_threshold: float, terrain: PatchTerrain,
                  params: "TreadPlannerParams | None" = None):
@@ -68,6 +70,7 @@ class TreadFootstepPlanner(FootstepPlanner):
         terrain.edge_margin = p.edge_margin
         terrain.clearance = p.clearance
         self.velocity = VelocityFootstepPlanner(gait, start_threshold)
+        self._range_cache: dict[tuple, tuple[float, float]] = {}
         for x, dz in terrain.risers():
             if abs(dz) > p.max_step_height + 1e-9:
                 raise ValueError(
@@ -90,6 +93,38 @@ class TreadFootstepPlanner(FootstepPlanner):
             side = 1 - side
             steps.append(stance)
         return steps
+
+    def constrain(self, target_xy: np.ndarray, planned: np.ndarray) -> np.ndarray:
+        """The adjusted landing point with its offset along the planned sole's x axis clipped
+        so that heel and toe (plus the margin) stay on the planned foothold's level."""
+        lo, hi = self._level_range(planned)
+        c, s = math.cos(planned[3]), math.sin(planned[3])
+        dx, dy = float(target_xy[0] - planned[0]), float(target_xy[1] - planned[1])
+        along = c * dx + s * dy
+        clipped = min(max(along, lo), hi)
+        if clipped == along:
+            return target_xy
+        return np.array([target_xy[0] + c * (clipped - along), target_xy[1] + s * (clipped - along)])
+
+    def _level_range(self, planned: np.ndarray) -> tuple[float, float]:
+        """Shifts [m] along the planned sole's x axis that keep it on its level (cached)."""
+        key = (round(float(planned[0]), 4), round(float(planned[1]), 4),
+               round(float(planned[3]), 4))
+        r = self._range_cache.get(key)
+        if r is None:
+            if len(self._range_cache) > 64:
+                self._range_cache.clear()
+            half = 0.5 * self.terrain.foot_length + self.params.edge_margin
+            reach = self.gait.max_step_forward + 0.1
+            x, y, yaw = float(planned[0]), float(planned[1]), float(planned[3])
+            edges = self.terrain.edges_along(x, y, yaw, -reach - half, reach + half)
+            behind = [e for e in edges if e < 0.0]
+            ahead = [e for e in edges if e > 0.0]
+            lo = (behind[-1] + half) if behind else -reach
+            hi = (ahead[0] - half) if ahead else reach
+            r = (min(lo, 0.0), max(hi, 0.0))
+            self._range_cache[key] = r
+        return r
 
     def on_tread(self, target: np.ndarray, stance: np.ndarray) -> np.ndarray:
         """``target`` (x, y, z, yaw) moved along its x axis onto one level (see the module
