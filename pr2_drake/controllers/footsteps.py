@@ -178,6 +178,10 @@ class FootstepPlanner:
         the other side, then alternating."""
         raise NotImplementedError
 
+    def observe(self, footholds: list) -> None:
+        """The soles' footholds now, [left, right] (x, y, z, yaw) in W, given every tick before
+        any planning (a planner that needs the swing sole's start keeps them). Default: unused."""
+
     def constrain(self, target_xy: np.ndarray, planned: np.ndarray) -> np.ndarray:
         """Where an adjusted landing point (xy, W) of the planned footstep ``planned`` (x, y,
         z, yaw) may go (e.g. kept on its tread); step adjustment calls it. Default: anywhere."""

@@ -163,6 +163,7 @@ class GaitPlanner:
             self.heading = new_heading
         if self.footholds[0] is None:
             self.footholds = [self._sole_pose4(0), self._sole_pose4(1)]
+        self.footsteps.observe(self.footholds)
 
         self._step_state_machine(t, com, comd)
         return self._fill_plan(t, dt, com, comd)
@@ -173,6 +174,7 @@ class GaitPlanner:
         if self.phase == Phase.STAND or self.phase == Phase.STOP:
             if self._moving():
                 self.footholds = [self._sole_pose4(0), self._sole_pose4(1)]
+                self.footsteps.observe(self.footholds)
                 self._start_walking(t, com, comd)
             elif self.phase == Phase.STOP and t - self.t_phase >= self.phase_duration:
                 self.phase = Phase.STAND

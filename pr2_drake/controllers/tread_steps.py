@@ -6,8 +6,10 @@ heel and toe) would straddle an edge of the terrain (:class:`pr2_drake.controlle
 terrain_model.PatchTerrain`), moves it along the sole's x axis: back, so that the toe stops
 short of the edge, or forward onto the next level, so that the heel is past it. Back wins when
 it is the smaller move and still makes ``min_progress``; forward must stay within the stride
-limit. Its height is the terrain's under it. The robot thus takes two steps per 0.40 m tread:
-step-ups and step-downs land with the whole sole on the tread, away from the nosing.
+limit. Its height is the terrain's under it. Over a riser the robot steps to (:meth:`step_to`):
+the swing sole first comes beside the stance sole before the edge, one sole steps up (or down)
+onto the next tread, and the other joins it, so that no swing travels more than one riser
+stride. Step-ups and step-downs land with the whole sole on the tread, away from the nosing.
 
 A riser taller than ``max_step_height`` is refused: the constructor raises ValueError naming
 the terrain and the riser (:meth:`PatchTerrain.risers`); at run time a step that would need one
@@ -28,6 +30,9 @@ from pr2_drake.controllers.footsteps import FootstepPlanner, VelocityFootstepPla
 from pr2_drake.controllers.terrain_model import LEVEL_TOLERANCE, PatchTerrain
 from pr2_drake.controllers.walking_params import GaitParams
 from pr2_drake.paths import resolve_user_path
+
+#: [m] a swing sole within this of the stance sole along the heading stands beside it.
+BESIDE = 0.05
 
 
 @dataclass
@@ -71,6 +76,7 @@ class TreadFootstepPlanner(FootstepPlanner):
         terrain.clearance = p.clearance
         self.velocity = VelocityFootstepPlanner(gait, start_threshold)
         self._range_cache: dict[tuple, tuple[float, float]] = {}
+        self._footholds: list = [None, None]
         for x, dz in terrain.risers():
             if abs(dz) > p.max_step_height + 1e-9:
                 raise ValueError(
@@ -84,15 +90,46 @@ class TreadFootstepPlanner(FootstepPlanner):
     def first_swing_side(self, command, footholds) -> int:
         return self.velocity.first_swing_side(command, footholds)
 
+    def observe(self, footholds) -> None:
+        self._footholds = footholds
+
     def next_steps(self, stance, stance_side, heading, command, n):
         steps = []
         side = stance_side
+        other = self._footholds[1 - stance_side]  # where the first swing sole starts
         for _ in range(n):
             proposed = self.velocity.next_steps(stance, side, heading, command, 1)[0]
-            stance = self.on_tread(proposed, stance)
+            step = self.step_to(self.on_tread(proposed, stance), stance, other)
+            other, stance = stance, step
             side = 1 - side
-            steps.append(stance)
+            steps.append(step)
         return steps
+
+    def step_to(self, target: np.ndarray, stance: np.ndarray, swing: np.ndarray | None
+                ) -> np.ndarray:
+        """Step-to over risers, so that no swing sole travels more than one riser stride: a
+        sole changes level only from beside the stance sole (both on one level), and the next
+        one then joins it beside. Otherwise ``target`` (on a tread) is kept.
+
+        Args:
+            target: the planned foothold on a tread (x, y, z, yaw).
+            stance: the stance sole; swing: where the swing sole starts (None: unknown).
+        """
+        if swing is None:
+            return target
+        t = self.terrain
+        z_target = float(target[2])
+        z_stance = t.height(float(stance[0]), float(stance[1]))
+        z_swing = t.height(float(swing[0]), float(swing[1]))
+        c, s = math.cos(target[3]), math.sin(target[3])
+        beside = abs(c * (swing[0] - stance[0]) + s * (swing[1] - stance[1])) < BESIDE
+        crossing = abs(z_target - z_stance) >= LEVEL_TOLERANCE
+        joining = abs(z_swing - z_stance) >= LEVEL_TOLERANCE
+        if not (joining or (crossing and not beside)):
+            return target
+        # Beside the stance sole: the target moved along its x axis to the stance sole's.
+        along = c * (stance[0] - target[0]) + s * (stance[1] - target[1])
+        return np.array([target[0] + c * along, target[1] + s * along, z_stance, target[3]])
 
     def constrain(self, target_xy: np.ndarray, planned: np.ndarray) -> np.ndarray:
         """The adjusted landing point with its offset along the planned sole's x axis clipped
