@@ -10,6 +10,9 @@
         the time from invoking the command to its first simulated step.
     pr2-drake bench walking [...]
         the walking controller's benchmark (pr2_drake.bench.walking).
+    pr2-drake bench stairs [--quick] [--repeats 5]
+        up then down staircases per riser height: falls, time, real-time factor
+        (pr2_drake.bench.stairs).
 """
 
 from __future__ import annotations
@@ -145,6 +148,7 @@ def bench_walking(argv: list[str]) -> int:
 BENCHMARKS = {"sim": bench_sim, "camera": bench_camera, "startup": bench_startup,
               "walking": bench_walking}
 BENCHMARKS["whole-body"] = lambda argv: __import__("pr2_drake.bench.whole_body", fromlist=["main"]).main(argv)  # noqa: E501
+BENCHMARKS["stairs"] = lambda argv: __import__("pr2_drake.bench.stairs", fromlist=["main"]).main(argv)  # noqa: E501
 
 
 def run_benchmark(what: str, argv: list[str]) -> int:

@@ -8,7 +8,7 @@
 
 Every episode is a :class:`pr2_drake.scenario.Scenario`: the YAML file, then the flags, then
 the ``--set`` overrides.
-    pr2-drake bench {sim,camera,startup,walking} [...]
+    pr2-drake bench {sim,camera,startup,walking,stairs} [...]
     pr2-drake tasks
 
 Heavy imports (pydrake) happen inside the commands so that ``--help`` answers at once.
@@ -299,8 +299,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="JSON", help="write all reports and the summary")
     p.set_defaults(func=cmd_eval)
 
-    p = sub.add_parser("bench", help="benchmarks: sim, camera, startup, walking")
-    p.add_argument("what", choices=("sim", "camera", "startup", "walking", "whole-body", "all"))
+    p = sub.add_parser("bench", help="benchmarks: sim, camera, startup, walking, stairs")
+    p.add_argument("what", choices=("sim", "camera", "startup", "walking", "whole-body",
+                                    "stairs", "all"))
     p.add_argument("rest", nargs=argparse.REMAINDER, help="options of that benchmark")
     p.set_defaults(func=cmd_bench)
 
