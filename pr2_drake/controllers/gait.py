@@ -231,7 +231,10 @@ class GaitPlanner:
             a_xy = self.com_planner.comdd(t, com[:2], comd[:2])
         # CoM height: standing height at rest, the (lower) LIPM height when walking; the target
         # moves at a bounded rate, starting from the measured height.
-        z_goal = ground + (g.stand_com_height if self.phase == Phase.STAND else g.com_height)
+        z_ref = ground
+        if g.com_height_over_stance and self.phase == Phase.SINGLE:
+            z_ref = float(self.footholds[self.stance][2])  # over the stance sole (stairs)
+        z_goal = z_ref + (g.stand_com_height if self.phase == Phase.STAND else g.com_height)
         if self.z_target is None:
             self.z_target = float(com[2])
         dz = g.height_rate * dt

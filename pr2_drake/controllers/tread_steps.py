@@ -33,6 +33,8 @@ from pr2_drake.paths import resolve_user_path
 
 #: [m] a swing sole within this of the stance sole along the heading stands beside it.
 BESIDE = 0.05
+#: [m] step adjustment moves a step up or down at most this far forward of its plan.
+LEVEL_CHANGE_SLACK = 0.03
 
 
 @dataclass
@@ -125,16 +127,36 @@ class TreadFootstepPlanner(FootstepPlanner):
         beside = abs(c * (swing[0] - stance[0]) + s * (swing[1] - stance[1])) < BESIDE
         crossing = abs(z_target - z_stance) >= LEVEL_TOLERANCE
         joining = abs(z_swing - z_stance) >= LEVEL_TOLERANCE
+        if crossing and not joining:
+            # First up to the edge: the sole stops short of it (heel and toe plus the margin on
+            # the stance sole's level) when the stance sole is farther back than that.
+            half = 0.5 * t.foot_length + self.params.edge_margin
+            edges = t.edges_along(float(stance[0]), float(stance[1]), float(target[3]), 0.0,
+                                  half + self.gait.max_step_forward + 0.1)
+            if edges:
+                short = edges[0] - half - 1e-3  # from the stance sole, along the target's x
+                if short > BESIDE:
+                    return np.array([stance[0] + c * short, stance[1] + s * short, z_stance,
+                                     target[3]]) + self._lateral(target, stance, c, s)
         if not (joining or (crossing and not beside)):
             return target
         # Beside the stance sole: the target moved along its x axis to the stance sole's.
         along = c * (stance[0] - target[0]) + s * (stance[1] - target[1])
         return np.array([target[0] + c * along, target[1] + s * along, z_stance, target[3]])
 
+    @staticmethod
+    def _lateral(target, stance, c: float, s: float) -> np.ndarray:
+        """The target's offset from the stance sole across its x axis, as a 4-vector."""
+        lat = -s * (target[0] - stance[0]) + c * (target[1] - stance[1])
+        return np.array([-s * lat, c * lat, 0.0, 0.0])
+
     def constrain(self, target_xy: np.ndarray, planned: np.ndarray) -> np.ndarray:
         """The adjusted landing point with its offset along the planned sole's x axis clipped
-        so that heel and toe (plus the margin) stay on the planned foothold's level."""
+        so that heel and toe (plus the margin) stay on the planned foothold's level, and a
+        step up or down at most :data:`LEVEL_CHANGE_SLACK` forward of its plan."""
         lo, hi = self._level_range(planned)
+        if self._changes_level(planned):  # a step up or down: no longer stride over the riser
+            hi = min(hi, LEVEL_CHANGE_SLACK)
         c, s = math.cos(planned[3]), math.sin(planned[3])
         dx, dy = float(target_xy[0] - planned[0]), float(target_xy[1] - planned[1])
         along = c * dx + s * dy
@@ -142,6 +164,11 @@ class TreadFootstepPlanner(FootstepPlanner):
         if clipped == along:
             return target_xy
         return np.array([target_xy[0] + c * (clipped - along), target_xy[1] + s * (clipped - along)])
+
+    def _changes_level(self, planned: np.ndarray) -> bool:
+        """Whether ``planned`` is on another level than both soles now."""
+        return all(f is None or abs(float(planned[2]) - float(f[2])) > 0.02
+                   for f in self._footholds)
 
     def _level_range(self, planned: np.ndarray) -> tuple[float, float]:
         """Shifts [m] along the planned sole's x axis that keep it on its level (cached)."""
