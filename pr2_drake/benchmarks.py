@@ -157,7 +157,9 @@ def _module_benchmark(module: str):
 BENCHMARKS = {"sim": bench_sim, "camera": bench_camera, "startup": bench_startup,
               "walking": _module_benchmark("walking"),
               "whole-body": _module_benchmark("whole_body"),
-              "perception": _module_benchmark("perception")}
+              "perception": _module_benchmark("perception"),
+              "jumping": _module_benchmark("jumping"),
+              "stairs": _module_benchmark("stairs")}
 """Every ``pr2-drake bench`` command by name; the CLI's choices come from here."""
 
 

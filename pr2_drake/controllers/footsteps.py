@@ -94,6 +94,12 @@ class FlatTerrain:
         """
         return float(stance[2]), 0.0
 
+    def swing_clearance(self, start: np.ndarray, target: np.ndarray) -> float | None:
+        """Height [m, W] a swing sole from ``start`` to ``target`` (x, y, z, yaw) must clear
+        (it lifts, moves, then lowers: :class:`pr2_drake.controllers.swing.SwingTrajectory`),
+        or None for the plain swing curve (no edge on the way; the default)."""
+        return None
+
 
 class SlopeTerrain(FlatTerrain):
     """A planar incline of known angle between a lower and an upper level (the task-4 prior).
@@ -171,6 +177,15 @@ class FootstepPlanner:
         """The ``n`` footholds after a sole at ``stance`` (side ``stance_side``): the first on
         the other side, then alternating."""
         raise NotImplementedError
+
+    def observe(self, footholds: list) -> None:
+        """The soles' footholds now, [left, right] (x, y, z, yaw) in W, given every tick before
+        any planning (a planner that needs the swing sole's start keeps them). Default: unused."""
+
+    def constrain(self, target_xy: np.ndarray, planned: np.ndarray) -> np.ndarray:
+        """Where an adjusted landing point (xy, W) of the planned footstep ``planned`` (x, y,
+        z, yaw) may go (e.g. kept on its tread); step adjustment calls it. Default: anywhere."""
+        return target_xy
 
 
 class VelocityFootstepPlanner(FootstepPlanner):

@@ -168,6 +168,7 @@ class GaitPlanner:
             self.heading = new_heading
         if self.footholds[0] is None:
             self.footholds = [self._sole_pose4(0), self._sole_pose4(1)]
+        self.footsteps.observe(self.footholds)
 
         self._step_state_machine(t, com, comd)
         return self._fill_plan(t, dt, com, comd)
@@ -178,6 +179,7 @@ class GaitPlanner:
         if self.phase == Phase.STAND or self.phase == Phase.STOP:
             if self._moving():
                 self.footholds = [self._sole_pose4(0), self._sole_pose4(1)]
+                self.footsteps.observe(self.footholds)
                 self._start_walking(t, com, comd)
             elif self.phase == Phase.STOP and t - self.t_phase >= self.phase_duration:
                 self.phase = Phase.STAND
@@ -234,7 +236,10 @@ class GaitPlanner:
             a_xy = self.com_planner.comdd(t, com[:2], comd[:2])
         # CoM height: standing height at rest, the (lower) LIPM height when walking; the target
         # moves at a bounded rate, starting from the measured height.
-        z_goal = ground + (g.stand_com_height if self.phase == Phase.STAND else g.com_height)
+        z_ref = ground
+        if g.com_height_over_stance and self.phase == Phase.SINGLE:
+            z_ref = float(self.footholds[self.stance][2])  # over the stance sole (stairs)
+        z_goal = z_ref + (g.stand_com_height if self.phase == Phase.STAND else g.com_height)
         if self.z_target is None:
             self.z_target = float(com[2])
         dz = g.height_rate * dt
@@ -475,7 +480,7 @@ class GaitPlanner:
                              self.heading, earliest, planned, latest, t_now_land, g, omega)
         if abs(choice.landing_time - t_now_land) > 1e-6:
             sw.retime(t, choice.landing_time)
-        target_xy = choice.target_xy - (plan_zmp - plan[:2])
+        target_xy = self.footsteps.constrain(choice.target_xy - (plan_zmp - plan[:2]), plan)
         # Move the swing target at a bounded speed so the swing curve stays smooth.
         step = target_xy - self.swing.target[:2]
         max_step = g.retarget_speed * max(t - self._t_retarget, 0.0)
@@ -500,6 +505,9 @@ class GaitPlanner:
         z, pitch = self.terrain.foothold(stance, slope, self.swing.target)
         self.swing.target[2] = z
         self.swing.pitch_target = pitch
+        self.swing.clear_z = self.terrain.swing_clearance(self.swing.start, self.swing.target)
+        g = self.params.gait
+        self.swing.clear_fractions = (g.swing_clear_lift, g.swing_clear_lower)
 
     def _planned_dcm_offset(self) -> np.ndarray:
         """Periodic DCM offset b (xy, W) at the switch onto the planned swing target."""

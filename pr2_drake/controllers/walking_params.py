@@ -29,6 +29,15 @@ class GaitParams:
     max_step_yaw: float = 0.30
     swing_height: float = 0.06
     swing_land_fraction: float = 0.9  # the swing lands at this fraction of single support
+    # Over an edge (the terrain model's swing_clearance) the swing sole rises to the clearance
+    # height during this first fraction of the swing phase, moves, and lowers onto the target
+    # during this last fraction (lift, move, lower; the horizontal motion overlaps 40 %).
+    # The CoM height target is com_height above the mean foothold height, or, when this is
+    # set, above the stance sole in single support (stairs: the stance leg on the upper tread
+    # is not left crouched while the other sole swings up from the lower one).
+    com_height_over_stance: bool = False
+    swing_clear_lift: float = 0.3
+    swing_clear_lower: float = 0.3
     swing_lift_fraction: float = 0.0  # horizontal swing motion starts/ends this much of the
     # swing phase after lift-off / before landing (vertical lift and landing)
     touchdown_height: float = 0.004  # sole lower than this above the stance sole (above its
