@@ -238,7 +238,9 @@ class JumpPlanner:
         plan.com_frame_yaw = None
         plan.swing = None
         plan.ground_z = self.ground
-        plan.phase = int(ph)
+        # The walking status port's gait phase stays STAND (0) during a jump; the jump's phase
+        # is on the jump controller's ``jump_status`` port.
+        plan.phase = 0
         plan.stance = -1
         plan.soles = [None, None]
         plan.pelvis_scale = 1.0
