@@ -11,7 +11,14 @@ Flat ground, discrete SAP 1 ms, the walking controller with the arms in the QP
   hand would pull. "held": the controller's ``pick_state`` says the hand is attached, so the QP
   carries the hand's contact force (centred on its estimate from the arm torques) and the
   standing CoM leans against it; "not held": the same force unannounced (a disturbance).
-  Reported: fall, peak torso pitch and roll [deg], base drift [cm];
+  Reported: fall, peak torso pitch and roll [deg], base drift [cm]. Each force is applied at
+  once, and (held) also built up and let go over ``FORCE_RAMP`` seconds each, as a valve's or a
+  rope's reaction builds and fades. A force applied at once is limited by the feet: its moment about the ground,
+  f (z_H - z_ground), must be met at that instant by m g times the CoM's distance from the
+  centre of pressure, at most half a sole length (0.075 m) until the CoM has moved; for this
+  34.5 kg robot and hand height that is about 35 N forward. Sideways the stance width gives
+  more. Beyond that a step or a hip strategy would be needed (neither is in the controller);
+  a ramped force is leaned against as it grows;
 - hand tracking: targets on a grid in front of the left shoulder, one after the other (1.5 s
   each); the error at the end of each (median and max) [cm];
 - reach: the hand target moved forward (and, separately, down) in 2 cm steps until the hand
@@ -44,6 +51,8 @@ from pr2_drake.grasp import PickState
 BASELINE_REF = "c5e37f2"
 HAND = 0  # left
 HAND_OFFSET_B = np.array([0.26, 0.14, 0.16])  # [m] held hand, from the base (heading frame)
+FORCE_RAMP = 0.5  # [s] build-up time of the ramped hand-force rows
+RAMP_STEP = 0.01  # [s] the ramped force is updated this often
 
 
 def _sim(held: bool = False) -> WalkingSim:
@@ -53,8 +62,10 @@ def _sim(held: bool = False) -> WalkingSim:
     return sim
 
 
-def hand_force_row(force: float, direction: str, held: bool) -> dict:
-    """Stand, hold the left hand in front, pull it with ``force`` N for 3 s."""
+def hand_force_row(force: float, direction: str, held: bool, ramp: float = 0.0) -> dict:
+    """Stand, hold the left hand in front, pull it with ``force`` N for 3 s: applied and let go
+    at once (``ramp`` = 0), or built up and let go linearly over ``ramp`` seconds each; then
+    1 s without it."""
     sim = _sim(held)
     ok = sim.run(1.0)
     p0, *_ = sim.base_pose()
@@ -62,19 +73,31 @@ def hand_force_row(force: float, direction: str, held: bool) -> dict:
     ok = ok and sim.run(1.5)
     hand_body = sim.plant.GetBodyByName("l_arm_sphere")
     f = np.array([force, 0.0, 0.0]) if direction == "forward" else np.array([0.0, force, 0.0])
-    sim.push(f, body=hand_body, p_BQ=np.zeros(3))
     peak_pitch = peak_roll = 0.0
-    t_end = sim.time + 3.0
+    t0 = sim.time
+    t_end = t0 + 3.0
     while ok and sim.time < t_end - 1e-9:
-        ok = sim.run(0.05, check_every=0.05)
+        ramping = sim.time < t0 + ramp - 1e-9
+        dt = RAMP_STEP if ramping else 0.05
+        scale = min((sim.time - t0 + dt) / ramp, 1.0) if ramping else 1.0
+        sim.push(scale * f, body=hand_body, p_BQ=np.zeros(3))
+        ok = sim.run(dt, check_every=dt)
         _, roll, pitch, _ = sim.base_pose()
         peak_pitch = max(peak_pitch, abs(pitch))
         peak_roll = max(peak_roll, abs(roll))
     p1, *_ = sim.base_pose()
     f_est = sim.walker.core.hand_force.f[HAND].copy()
+    t1 = sim.time
+    while ok and sim.time < t1 + ramp - 1e-9:  # let go as it was built up
+        sim.push((1.0 - (sim.time - t1 + RAMP_STEP) / ramp) * f, body=hand_body,
+                 p_BQ=np.zeros(3))
+        ok = sim.run(RAMP_STEP, check_every=RAMP_STEP)
     sim.push(None)
     ok = ok and sim.run(1.0)
-    return dict(name=f"{force:.0f} N {direction}, {'held' if held else 'not held'}", fell=not ok,
+    how = "held" if held else "not held"
+    if ramp > 0.0:
+        how += f", ramp {ramp:g} s"
+    return dict(name=f"{force:.0f} N {direction}, {how}", fell=not ok,
                 pitch=np.degrees(peak_pitch), roll=np.degrees(peak_roll),
                 drift=100 * float(np.linalg.norm(p1[:2] - p0[:2])), f_est=f_est)
 
@@ -204,16 +227,17 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--repeats must be at least 1")
     q = args.quick
     print("hand force (standing, left hand held in front, force at the hand sphere for 3 s)")
-    print(f"  {'case':28s} {'fell':>5s} {'pitch':>7s} {'roll':>7s} {'drift':>7s}  estimate [N]")
+    print(f"  {'case':38s} {'fell':>5s} {'pitch':>7s} {'roll':>7s} {'drift':>7s}  estimate [N]")
     forces = (30.0,) if q else (30.0, 50.0)
     falls = 0
     for force in forces:
         for direction in ("forward", "sideways"):
-            for held in ((True,) if q else (True, False)):
-                r = hand_force_row(force, direction, held)
+            cases = ((True, 0.0),) if q else ((True, 0.0), (False, 0.0), (True, FORCE_RAMP))
+            for held, ramp in cases:
+                r = hand_force_row(force, direction, held, ramp)
                 falls += r["fell"]
                 est = ", ".join(f"{x:+.0f}" for x in r["f_est"])
-                print(f"  {r['name']:28s} {'YES' if r['fell'] else 'no':>5s} "
+                print(f"  {r['name']:38s} {'YES' if r['fell'] else 'no':>5s} "
                       f"{r['pitch']:6.1f}d {r['roll']:6.1f}d {r['drift']:5.1f}cm  ({est})",
                       flush=True)
     g = tracking_grid(q)

@@ -227,7 +227,7 @@ class GaitPlanner:
         if self.phase == Phase.STAND:
             target = 0.5 * (zmp_point(self.footholds[0], g) + zmp_point(self.footholds[1], g))
             if self.com_offset is not None:
-                target = target + self.com_offset
+                target = target + self._clip_lean(self.com_offset)
             a_xy = p.com_xy.kp * (target - com[:2]) - p.com_xy.kd * comd[:2]
         elif self.phase in (Phase.START, Phase.DOUBLE):
             a_xy = self._shift_comdd(t, com, comd)
@@ -296,6 +296,21 @@ class GaitPlanner:
         return SwingReference(side, p_d, v_d, a_d, R_d, w_d)
 
     # ---- helpers -----------------------------------------------------------------------------
+    def _clip_lean(self, offset: np.ndarray) -> np.ndarray:
+        """A standing CoM offset (xy, W) [m] clipped, in the heading frame, to the soles' contact
+        points less ``gait.lean_margin``: forward and back to the rearmost heel and foremost toe
+        point (a split stance leans further), sideways to the soles' lateral distance. A CoM leaned further would be behind the heel (or outside a
+        sole) when the force it leans against stops, and could not be brought back."""
+        g = self.params.gait
+        R = rot2(self.heading)
+        d = R.T @ offset
+        a, b = self.footholds
+        ab = R.T @ (a[:2] - b[:2])  # left sole from the right one, heading frame
+        half_x = max(float(np.max(self.model.p_SC[0])) + 0.5 * abs(float(ab[0]))
+                     - g.lean_margin, 0.0)
+        half_y = max(0.5 * abs(float(ab[1])) - g.lean_margin, 0.0)
+        return R @ np.array([min(max(d[0], -half_x), half_x), min(max(d[1], -half_y), half_y)])
+
     def _sole_pose4(self, side: int) -> np.ndarray:
         X = self.model.sole_pose(side)
         p = X.translation()

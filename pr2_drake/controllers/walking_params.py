@@ -23,6 +23,9 @@ class GaitParams:
     stop_settle: float = 0.60  # final double support before standing
     step_width: float = 0.22  # nominal lateral distance between the soles
     min_step_width: float = 0.15  # feet never get closer than this (lateral, heading frame)
+    # Standing lean against a force at a held hand: the CoM stays this far inside the soles'
+    # contact points (heading frame), so that it is still over the feet when the force stops.
+    lean_margin: float = 0.02
     max_step_forward: float = 0.25
     max_step_backward: float = 0.12
     max_step_lateral: float = 0.10  # extra width per step beyond step_width
