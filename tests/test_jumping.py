@@ -167,3 +167,12 @@ def test_moving_bar_agent_jumps_over_the_bar_without_touching_it():
     report = run_episode(Scenario(task=3, seed=0))
     assert report["score"] == 15.0 and report["termination"] == "completed"
     assert [e["item"] for e in report["items"]] == ["jump_over"]  # no bar contact
+
+
+def test_forward_jump_travels_forward_and_lands_without_a_fall():
+    from pr2_drake.bench.jumping import run_jump
+
+    r = run_jump(0.08, 0.2, after=1.0)  # requested: 0.2 m forward, CoM apex 0.08 m
+    assert r.landed and not r.fell
+    assert r.airborne > 0.05 and r.sole_apex > 0.03  # a real flight phase
+    assert r.distance > 0.1  # the soles landed more than 10 cm ahead

@@ -73,21 +73,37 @@ class StairsSim:
 
     Args:
         terrain: the ground (its level patches become boxes).
+        footsteps: the footstep planner (None: :class:`TreadFootstepPlanner` on ``terrain``).
+        obstacles: :class:`pr2_drake.controllers.step_over.Obstacle` boxes added to the scene
+            (not to the terrain model); their geometry ids in ``obstacle_ids``.
         start: the robot's start pose.
         params: walking parameters (None: walking.yaml with walking_stairs.yaml).
         planner_params: :class:`TreadPlannerParams` (None: controllers/tread_planner.yaml).
     """
 
     def __init__(self, terrain: PatchTerrain, start: StartPose | None = None,
-                 params: WalkingParams | None = None, planner_params=None, meshcat=None):
+                 params: WalkingParams | None = None, planner_params=None, meshcat=None,
+                 footsteps=None, obstacles=()):
         self.terrain = terrain
         self.params = params or WalkingParams.load().with_overrides(WALKING_OVERRIDES)
-        footsteps = TreadFootstepPlanner(self.params.gait, self.params.limits.start_threshold,
-                                         terrain, planner_params)
+        if footsteps is None:
+            footsteps = TreadFootstepPlanner(self.params.gait,
+                                             self.params.limits.start_threshold, terrain,
+                                             planner_params)
+        self.obstacle_ids: list = []  # GeometryId of each obstacle box
 
         def scene(plant, rng):
             add_flat_ground(plant)
             add_patch_terrain(plant, terrain)
+            for k, o in enumerate(obstacles):
+                box = Box(o.x_max - o.x_min, o.y_max - o.y_min, o.top)
+                X = RigidTransform([0.5 * (o.x_min + o.x_max), 0.5 * (o.y_min + o.y_max),
+                                    0.5 * o.top])
+                name = o.name or f"obstacle_{k}"
+                self.obstacle_ids.append(plant.RegisterCollisionGeometry(
+                    plant.world_body(), X, box, name, GROUND_FRICTION))
+                plant.RegisterVisualGeometry(plant.world_body(), X, box, name,
+                                             rgba([0.8, 0.3, 0.2]))
             return Scene(name="stairs", start=start or StartPose(),
                          ground_height=terrain.height)
 
@@ -139,6 +155,16 @@ class StairsSim:
         X = self.soles[side].CalcPoseInWorld(self.plant_context)
         half = 0.5 * self.terrain.foot_length
         return np.array([X @ np.array([-half, 0.0, 0.0]), X @ np.array([half, 0.0, 0.0])])
+
+    def touching(self, geometry_ids) -> bool:
+        """Whether any contact pair (last plant step) involves one of ``geometry_ids``."""
+        ids = set(geometry_ids)
+        res = self.plant.get_contact_results_output_port().Eval(self.plant_context)
+        for i in range(res.num_point_pair_contacts()):
+            info = res.point_pair_contact_info(i).point_pair()
+            if info.id_A in ids or info.id_B in ids:
+                return True
+        return False
 
     def status(self) -> np.ndarray:
         return self.walker.GetOutputPort("status").Eval(self.walker_context)

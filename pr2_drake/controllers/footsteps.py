@@ -187,6 +187,13 @@ class FootstepPlanner:
         z, yaw) may go (e.g. kept on its tread); step adjustment calls it. Default: anywhere."""
         return target_xy
 
+    def swing_clearance(self, start: np.ndarray, target: np.ndarray) -> float | None:
+        """Height [m, W] the swing sole from ``start`` to ``target`` (x, y, z, yaw) must clear
+        (a high lift-move-lower swing, e.g. stepping over an obstacle: :mod:`pr2_drake.
+        controllers.step_over`), or None (default: the terrain model decides). The gait
+        planner asks at lift-off; the higher of this and the terrain's clearance counts."""
+        return None
+
 
 class VelocityFootstepPlanner(FootstepPlanner):
     """Footsteps from the velocity command (:func:`next_footstep`), clamped per step.

@@ -104,6 +104,7 @@ class GaitPlanner:
         self.footholds: list[np.ndarray | None] = [None, None]
         self.swing: SwingTrajectory | None = None
         self.swing_plan: np.ndarray | None = None  # planned target before DCM adjustment
+        self._step_over = False  # the swing is a high one the footstep planner asked for
         self.heading: float | None = None
         self.t_last: float | None = None
         self.t_touchdown = -np.inf
@@ -409,6 +410,8 @@ class GaitPlanner:
         self.swing.pitch_start = self._sole_pitch(swing_side)
         self.swing_z_error = 0.0
         self._terrain_target()
+        self._step_over = False
+        self._step_over_clearance()
         self.dcm_offset = self._planned_dcm_offset()
         self._t_retarget = t
         self.phase = Phase.SINGLE
@@ -505,6 +508,8 @@ class GaitPlanner:
         self.swing.target[:2] += step
         self._t_retarget = t
         self._terrain_target()
+        if self._step_over:  # a high swing stays high (no jump of the reference mid-swing)
+            self._step_over_clearance()
 
     def _sole_pitch(self, side: int) -> float:
         """Pitch [rad] of a sole about its y axis (negative = toe up)."""
@@ -521,6 +526,19 @@ class GaitPlanner:
         self.swing.target[2] = z
         self.swing.pitch_target = pitch
         self.swing.clear_z = self.terrain.swing_clearance(self.swing.start, self.swing.target)
+        g = self.params.gait
+        self.swing.clear_fractions = (g.swing_clear_lift, g.swing_clear_lower)
+
+    def _step_over_clearance(self) -> None:
+        """A high swing when the footstep planner asks for one (stepping over an obstacle,
+        :meth:`FootstepPlanner.swing_clearance`): the higher of its and the terrain's height."""
+        clear = self.footsteps.swing_clearance(self.swing.start, self.swing.target)
+        if clear is None:
+            return
+        self._step_over = True
+        if self.swing.clear_z is not None:
+            clear = max(clear, self.swing.clear_z)
+        self.swing.clear_z = float(clear)
         g = self.params.gait
         self.swing.clear_fractions = (g.swing_clear_lift, g.swing_clear_lower)
 

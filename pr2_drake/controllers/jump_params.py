@@ -43,6 +43,8 @@ class JumpParams:
     angular_momentum: TaskGains = field(default_factory=lambda: TaskGains(0.0, 10.0, 10.0))
     launch_angular_momentum_weight: float = 100.0
     launch_pelvis_scale: float = 0.03
+    launch_cop_back: float = 0.03
+    launch_lean_max: float = 0.04
     soles: TaskGains = field(default_factory=lambda: TaskGains(600.0, 50.0, 1000.0))
     soles_rot: TaskGains = field(default_factory=lambda: TaskGains(300.0, 35.0, 100.0))
     load_ramp: float = 0.02

@@ -4,7 +4,8 @@ A jump request (:class:`JumpRequest`: take-off time, horizontal velocity, apex h
 a timeline ending at the requested take-off time:
 
 - CROUCH: the CoM goes down to ``crouch_height`` along a quintic (PD + feed-forward), over the
-  middle of the soles (shifted back by half the launch's horizontal travel), then holds;
+  middle of the soles (leaning along the launch's horizontal velocity, so that the launch
+  force passes through the CoM: ``launch_cop_back``), then holds;
 - LAUNCH: the centroidal MPC (:class:`pr2_drake.controllers.centroidal_mpc.CentroidalMpc`)
   chooses the sole forces that reach the take-off velocity v_to at ``takeoff_height`` at the
   take-off time; the QP tracks the CoM acceleration of its first knot. v_to: vertical
@@ -147,9 +148,19 @@ class JumpPlanner:
         self.crouch_T = max(1e-3, self.t_launch - p.crouch_hold - t)
         com, comd, _, _ = m.com()
         self.c_start = com.copy()
-        # The launch moves the CoM by v T/2 horizontally: start it back by half of that.
-        shift = 0.5 * self.v_to_xy * T_L
-        self.c_crouch = np.array([mid[0] - 0.5 * shift[0], mid[1] - 0.5 * shift[1],
+        # A horizontal launch pushes along a line through the CoM (no pitching): the CoM
+        # leans ahead of the centre of pressure by its height times a_xy / (g + a_z) (mean
+        # launch accelerations), with the centre of pressure ``launch_cop_back`` behind the
+        # soles' middle, against the motion.
+        a_xy = self.v_to_xy / T_L
+        ratio = a_xy / (self.g + req.vertical_speed(self.g) / T_L)
+        speed = float(np.linalg.norm(self.v_to_xy))
+        back = self.v_to_xy / speed * p.launch_cop_back if speed > 1e-9 else np.zeros(2)
+        lean = p.crouch_height * ratio - back
+        n_lean = float(np.linalg.norm(lean))
+        if n_lean > p.launch_lean_max:  # the crouched CoM stays over the soles
+            lean *= p.launch_lean_max / n_lean
+        self.c_crouch = np.array([mid[0] + lean[0], mid[1] + lean[1],
                                   self.ground + p.crouch_height])
         self.phase = JumpPhase.CROUCH
         self.t_phase = t
@@ -238,7 +249,9 @@ class JumpPlanner:
         plan.com_frame_yaw = None
         plan.swing = None
         plan.ground_z = self.ground
-        plan.phase = int(ph)
+        # The walking status port's gait phase stays STAND (0) during a jump; the jump's phase
+        # is on the jump controller's ``jump_status`` port.
+        plan.phase = 0
         plan.stance = -1
         plan.soles = [None, None]
         plan.pelvis_scale = 1.0

@@ -40,14 +40,12 @@ from pr2_drake.controllers.jump_planner import JumpPhase, JumpPlanner, JumpReque
 from pr2_drake.controllers.jump_tasks import (
     AngularMomentumTask,
     Com3dTask,
-    JumpPlan,
     ScaledPelvisTask,
     SolesTask,
 )
 from pr2_drake.controllers.walking import WalkingController, obs_to_vectors
 from pr2_drake.controllers.walking_params import WalkingParams
-from pr2_drake.controllers.whole_body import COMMAND_PORT, TickInfo, WholeBodyController, \
-    check_command
+from pr2_drake.controllers.whole_body import COMMAND_PORT, WholeBodyController, check_command
 from pr2_drake.lifetime import weak_calc
 from pr2_drake.ports import EFFORT_ARMS
 
@@ -168,45 +166,8 @@ class JumpCore:
             self.history.append(dict(self.planner.log))
             core.planner.reset()
             return core.update(t, q, v, command, tau_arms)
-        return track_plan(core, plan, self.tasks, q, v, tau_arms,
-                          self.params.joint_limit_horizon)
-
-
-def track_plan(core: WholeBodyController, plan: JumpPlan, tasks, q: np.ndarray, v: np.ndarray,
-               tau_arms: np.ndarray | None, joint_limit_horizon: float | None = None
-               ) -> np.ndarray:
-    """Solve the whole-body QP of ``core`` for a plan and a task list (the model holds (q, v));
-    the same constraints as :meth:`WholeBodyController.update` (torque limits, friction,
-    joint-limit braking within ``joint_limit_horizon`` [s], default the walking one). Returns
-    the leg torques [Nm]; fills ``core.info`` and ``core.last_result``."""
-    p, m = core.params, core.model
-    cost = core.cost
-    cost.clear()
-    for task in tasks:
-        task.add_to(cost, m, plan)
-    if tau_arms is None or not np.all(np.isfinite(tau_arms)):
-        q_arms = q[m.maps.q_joints[:len(m.v_arms)]]
-        tau_arms = np.clip(p.arm_stiffness * (core.q_arms_hold - q_arms)
-                           - p.arm_damping * v[m.v_arms], -core.arm_effort, core.arm_effort)
-    hz = p.qp.joint_limit_horizon if joint_limit_horizon is None else joint_limit_horizon
-    q_l = q[core.q_box_idx]
-    v_l = v[core.box_v]
-    a_lo = 2.0 * (core.q_box_min - q_l - v_l * hz) / (hz * hz)
-    a_hi = 2.0 * (core.q_box_max - q_l - v_l * hz) / (hz * hz)
-    bad = a_lo > a_hi
-    mid = 0.5 * (a_lo + a_hi)
-    a_lo = np.clip(np.where(bad, mid, a_lo), -2000.0, 2000.0)
-    a_hi = np.clip(np.where(bad, mid, a_hi), -2000.0, 2000.0)
-    fz_max = np.repeat([c.fz_max for c in plan.contacts], m.n_points)
-    fz_min = np.repeat([c.fz_min for c in plan.contacts], m.n_points)
-    res = core.qp.solve(m.mass_matrix(), m.bias(), core.contacts.J_all, cost.H, cost.g, fz_max,
-                        tau_arms, fz_min, core.contacts.J_kin, core.contacts.a_kin,
-                        (a_lo, a_hi))
-    com = m.com()[0]
-    core.info = TickInfo(res.ok, core.qp.failures, res.iterations, Phase.STAND, -1,
-                         bool(com[2] - plan.ground_z < 0.5 * p.gait.com_height))
-    core.last_result = res
-    return res.tau
+        # The jump's plan and tasks, tracked by the whole-body controller's own QP.
+        return core.track(plan, self.tasks, q, v, tau_arms, self.params.joint_limit_horizon)
 
 
 class JumpController(WalkingController):

@@ -30,6 +30,7 @@ import numpy as np
 from pr2_drake.controllers.footsteps import FlatTerrain, FootstepPlanner
 from pr2_drake.controllers.gait import GaitPlanner, Phase
 from pr2_drake.controllers.hand_force import HandForceEstimator
+from pr2_drake.controllers.plan import WholeBodyPlan
 from pr2_drake.controllers.tasks import (
     ComTask,
     HandPositionTask,
@@ -269,7 +270,6 @@ class WholeBodyController:
             t0 = time.perf_counter()
         cmd = check_command(command)
         targets = check_hand_targets(hand_targets)
-        p = self.params
         m = self.model
         m.update(q, v)
         com, comd, _, _ = m.com()
@@ -289,11 +289,27 @@ class WholeBodyController:
                 h.attached = attached[side]
                 h.force_prior = self.hand_force.f[side]
         if timed:
+            self.timing[0] += time.perf_counter() - t0
+        return self.track(plan, self.tasks, q, v, tau_arms)
+
+    def track(self, plan: WholeBodyPlan, tasks, q: np.ndarray, v: np.ndarray,
+              tau_arms: np.ndarray | None = None,
+              joint_limit_horizon: float | None = None) -> np.ndarray:
+        """Track a plan with a task list: the tasks' rows, then the whole-body QP (torque
+        limits, friction, the plan's contact-force bounds, joint-limit braking within
+        ``joint_limit_horizon`` [s], default ``qp.joint_limit_horizon``). The model must hold
+        the measured (q, v) (:meth:`update` does this; another planner, e.g. a jump's, calls
+        ``model.update`` then this with its own plan and tasks). ``tau_arms`` as in
+        :meth:`update`. Returns the leg torques [Nm]; fills ``info`` and ``last_result``."""
+        timed = self.timed
+        if timed:
             t1 = time.perf_counter()
+        p = self.params
+        m = self.model
         cost = self.cost
         cost.clear()
         cost.record = self.debug
-        for task in self.tasks:
+        for task in tasks:
             task.add_to(cost, m, plan)
         # Arm torques: measured, or the posture block's spring-damper (position mode).
         if not self.arms_driven and (tau_arms is None or not np.all(np.isfinite(tau_arms))):
@@ -301,7 +317,7 @@ class WholeBodyController:
             tau_arms = np.clip(p.arm_stiffness * (self.q_arms_hold - q_arms)
                                - p.arm_damping * v[m.v_arms], -self.arm_effort, self.arm_effort)
         # Joint limits: accelerations that stop each joint within its range in horizon h.
-        hz = p.qp.joint_limit_horizon
+        hz = p.qp.joint_limit_horizon if joint_limit_horizon is None else joint_limit_horizon
         q_l = q[self.q_box_idx]
         v_l = v[self.box_v]
         a_lo = 2.0 * (self.q_box_min - q_l - v_l * hz) / (hz * hz)
@@ -345,11 +361,12 @@ class WholeBodyController:
             self.debug_info = dict(costs=[float(np.sum(w * (J @ res.vdot - a) ** 2))
                                           for J, a, w in cost.rows], rows=list(cost.rows))
         g = p.gait
+        com = m.com()[0]
         falling = bool(com[2] - plan.ground_z < 0.5 * g.com_height)
         self.info = TickInfo(res.ok, self.qp.failures, res.iterations, Phase(plan.phase),
                              plan.stance, falling)
         self.last_result = res
         if timed:
             t3 = time.perf_counter()
-            self.timing += (t1 - t0, t2 - t1, t3 - t2)
+            self.timing[1:] += (t2 - t1, t3 - t2)
         return res.tau
