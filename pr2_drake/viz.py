@@ -10,15 +10,19 @@ from pydrake.geometry import (
     ColorRenderCamera,
     DepthRange,
     DepthRenderCamera,
+    MakeRenderEngineVtk,
     RenderCameraCore,
 )
+
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.sensors import CameraInfo, RgbdSensor
 
-from pr2_drake.camera import RENDERER_NAME, CameraSettings
+from pr2_drake.camera import CameraSettings, renderer_params
 from pr2_drake.testbed import Testbed, TestbedConfig
+
+OVERVIEW_RENDERER = "pr2_vtk_overview"
 
 
 def look_at(p_WEye: np.ndarray, p_WTarget: np.ndarray) -> RigidTransform:
@@ -64,7 +68,13 @@ def render_task_views(config: TestbedConfig, X_WC: RigidTransform | None = None,
     builder = DiagramBuilder()
     testbed = builder.AddSystem(Testbed(config))
     X = X_WC or default_overview_pose(testbed)
-    core = RenderCameraCore(RENDERER_NAME, CameraInfo(width, height, np.radians(fov_y_deg)),
+    # The overview gets its own renderer: two cameras sharing one VTK engine corrupt each
+    # other's shadow maps (whole rooms drawn black).
+    scene_graph = testbed.scene_graph
+    if not scene_graph.HasRenderer(OVERVIEW_RENDERER):
+        scene_graph.AddRenderer(OVERVIEW_RENDERER,
+                                MakeRenderEngineVtk(renderer_params(config.camera.quality)))
+    core = RenderCameraCore(OVERVIEW_RENDERER, CameraInfo(width, height, np.radians(fov_y_deg)),
                             ClippingRange(0.05, 100.0), RigidTransform())
     sensor = builder.AddSystem(RgbdSensor(
         testbed.scene_graph.world_frame_id(), X, ColorRenderCamera(core, False),
