@@ -174,9 +174,8 @@ def renderer_params(quality: str) -> RenderEngineVtkParams:
     preset = PRESETS[quality]
     params = RenderEngineVtkParams()
     params.default_clear_color = [0.62, 0.75, 0.92]
-    params.lights = [LightParameter(type="directional", frame="world",
-                                    direction=list(SUN_DIRECTION), intensity=preset.sun,
-                                    color=Rgba(1.0, 0.97, 0.9))]
+    lights = [LightParameter(type="directional", frame="world", direction=list(SUN_DIRECTION),
+                             intensity=preset.sun, color=Rgba(1.0, 0.97, 0.9))]
     for az, el in SKY_DIRECTIONS[:4] if not preset.shadows else SKY_DIRECTIONS:
         if preset.shadows:  # point lights: no shadow maps
             light = LightParameter(type="point", frame="world", position=_from(az, el),
@@ -186,12 +185,13 @@ def renderer_params(quality: str) -> RenderEngineVtkParams:
             light = LightParameter(type="directional", frame="world",
                                    direction=[-v for v in _from(az, el, 1.0)],
                                    intensity=preset.sky)
-        params.lights.append(light)
+        lights.append(light)
     if preset.bounce > 0:
-        params.lights.append(LightParameter(type="point", frame="world",
-                                            position=[0.0, 0.0, -SKY_DISTANCE],
-                                            intensity=preset.bounce * SKY_DISTANCE ** 2,
-                                            color=Rgba(*BOUNCE_COLOR)))
+        lights.append(LightParameter(type="point", frame="world",
+                                     position=[0.0, 0.0, -SKY_DISTANCE],
+                                     intensity=preset.bounce * SKY_DISTANCE ** 2,
+                                     color=Rgba(*BOUNCE_COLOR)))
+    params.lights = lights  # (the property returns a copy: assign, do not append)
     if preset.environment_map:
         from pydrake.geometry import EnvironmentMap, EquirectangularMap
 

@@ -27,7 +27,8 @@ from typing import Sequence
 
 import numpy as np
 from pydrake.common.yaml import yaml_load_file
-from pydrake.geometry import Box, Mesh
+from pydrake.geometry import (Box, GeometryInstance, IllustrationProperties, Mesh,
+                              PerceptionProperties)
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import CoulombFriction, MultibodyPlant
 
@@ -155,8 +156,11 @@ def add_textured_boxes(plant: MultibodyPlant, name: str,
     """Register the boxes (poses in ``body``, default the world) as one visual-only glTF."""
     body = plant.world_body() if body is None else body
     path = write_boxes_gltf(boxes, rgba, material(material_name))
-    plant.RegisterVisualGeometry(body, RigidTransform(), Mesh(str(path)), name,
-                                 np.asarray(list(rgba) + ([1.0] if len(rgba) == 3 else [])))
+    # No Drake material on the instance: the glTF's own PBR material is what renders.
+    instance = GeometryInstance(RigidTransform(), Mesh(str(path)), name)
+    instance.set_illustration_properties(IllustrationProperties())
+    instance.set_perception_properties(PerceptionProperties())
+    plant.RegisterVisualGeometry(body, instance)
 
 
 def add_textured_box(plant: MultibodyPlant, name: str, X: RigidTransform, size, rgba,

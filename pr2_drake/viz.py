@@ -41,6 +41,11 @@ def look_at(p_WEye: np.ndarray, p_WTarget: np.ndarray) -> RigidTransform:
 
 def default_overview_pose(testbed: Testbed) -> RigidTransform:
     """A camera above and behind the robot's start that sees the task's arena."""
+    return look_at(*overview_eye_target(testbed))
+
+
+def overview_eye_target(testbed: Testbed) -> tuple[np.ndarray, np.ndarray]:
+    """(eye, target) in world [m] of a view that frames the task's arena and the robot."""
     start = testbed.X_WB_start.translation()
     arena = testbed.task.spec.arena if testbed.task is not None else {}
     if arena:
@@ -50,7 +55,7 @@ def default_overview_pose(testbed: Testbed) -> RigidTransform:
     else:
         centre, size = start * np.array([1, 1, 0]) + [0, 0, 0.5], 3.0
     eye = centre + np.array([-0.55 * size, -0.65 * size, 0.6 * size + 1.0])
-    return look_at(eye, centre)
+    return eye, centre
 
 
 def render_task_views(config: TestbedConfig, X_WC: RigidTransform | None = None,
