@@ -179,7 +179,7 @@ def renderer_params(quality: str) -> RenderEngineVtkParams:
     for az, el in SKY_DIRECTIONS[:4] if not preset.shadows else SKY_DIRECTIONS:
         if preset.shadows:  # point lights: no shadow maps
             light = LightParameter(type="point", frame="world", position=_from(az, el),
-                                   intensity=preset.sky * SKY_DISTANCE ** 2,
+                                   intensity=preset.sky,
                                    color=Rgba(*SKY_COLOR))
         else:
             light = LightParameter(type="directional", frame="world",
@@ -189,7 +189,7 @@ def renderer_params(quality: str) -> RenderEngineVtkParams:
     if preset.bounce > 0:
         lights.append(LightParameter(type="point", frame="world",
                                      position=[0.0, 0.0, -SKY_DISTANCE],
-                                     intensity=preset.bounce * SKY_DISTANCE ** 2,
+                                     intensity=preset.bounce,
                                      color=Rgba(*BOUNCE_COLOR)))
     params.lights = lights  # (the property returns a copy: assign, do not append)
     if preset.environment_map:
