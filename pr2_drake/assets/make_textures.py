@@ -51,29 +51,32 @@ def _grey(lum: np.ndarray, tint=(1.0, 1.0, 1.0)) -> np.ndarray:
 
 
 def wood(rng, n=SIZE) -> np.ndarray:
-    """Wood grain along +u: warped growth rings, pores."""
+    """Wood grain along +u: long, gently warped growth lines (stretched along u), pores."""
     y = np.arange(n)[:, None] * np.ones((1, n))
-    warp = 0.9 * fbm(rng, n, 40, octaves=2)
-    rings = 0.5 + 0.5 * np.sin(2 * np.pi * (y * 12 / n + warp))
+    warp = 0.35 * fbm(rng, n, 48, octaves=2, aniso=(0.25, 1.0))
+    rings = 0.5 + 0.5 * np.sin(2 * np.pi * (y * 24 / n + warp))
+    streaks = fbm(rng, n, 6, octaves=2, aniso=(8.0, 1.0))
     pores = periodic_noise(rng, n, 0.7, aniso=(12.0, 1.0))
-    return _grey(0.74 + 0.18 * rings ** 2 + 0.05 * pores, (1.0, 0.96, 0.9))
+    return _grey(0.8 + 0.09 * rings ** 3 + 0.06 * streaks + 0.03 * pores, (1.0, 0.97, 0.92))
 
 
-def parquet(rng, n=SIZE) -> np.ndarray:
-    """Planks (4 rows, staggered), each a wood-grain strip with its own brightness, dark seams."""
+def parquet(rng, n=SIZE, rows: int = 8) -> np.ndarray:
+    """Planks (``rows`` rows, half-length stagger), each a wood strip with its own brightness
+    and grain offset, dark seams."""
     grain = wood(rng, n).astype(float) / 255
     out = np.empty_like(grain)
-    rows, plank_len = 4, n // 2
+    plank_len = n // 2
     h = n // rows
     for r in range(rows):
-        shift = (r * plank_len // 2) % n
-        band = np.roll(grain[r * h:(r + 1) * h], shift * 3 % n, axis=1)
+        shift = (r * plank_len // 2 + int(rng.integers(0, n // 8))) % n
+        src = int(rng.integers(0, n - h))
+        band = np.roll(grain[src:src + h], int(rng.integers(0, n)), axis=1).copy()
         for p in range(2):
             x0 = (shift + p * plank_len) % n
             cols = (np.arange(plank_len) + x0) % n
-            band[:, cols] *= 0.88 + 0.18 * rng.random()
-            band[:, x0] *= 0.55
-        band[0] *= 0.55
+            band[:, cols] *= 0.86 + 0.2 * rng.random()
+            band[:, x0] *= 0.6
+        band[0] *= 0.6
         out[r * h:(r + 1) * h] = band
     return (np.clip(out, 0, 1) * 255 + 0.5).astype(np.uint8)
 
