@@ -57,7 +57,7 @@ def wood(rng, n=SIZE) -> np.ndarray:
     rings = 0.5 + 0.5 * np.sin(2 * np.pi * (y * 24 / n + warp))
     streaks = fbm(rng, n, 6, octaves=2, aniso=(8.0, 1.0))
     pores = periodic_noise(rng, n, 0.7, aniso=(12.0, 1.0))
-    return _grey(0.8 + 0.09 * rings ** 3 + 0.06 * streaks + 0.03 * pores, (1.0, 0.97, 0.92))
+    return _grey(0.76 + 0.14 * rings ** 3 + 0.08 * streaks + 0.03 * pores, (1.0, 0.97, 0.92))
 
 
 def parquet(rng, n=SIZE, rows: int = 8) -> np.ndarray:
@@ -98,7 +98,7 @@ def tiles(rng, n=SIZE, count=4) -> np.ndarray:
 
 def plaster(rng, n=SIZE) -> np.ndarray:
     """Painted plaster: soft roller mottle and fine grit."""
-    return _grey(0.9 + 0.05 * fbm(rng, n, 24) + 0.025 * periodic_noise(rng, n, 1.0))
+    return _grey(0.88 + 0.08 * fbm(rng, n, 24) + 0.03 * periodic_noise(rng, n, 1.0))
 
 
 def fabric(rng, n=SIZE) -> np.ndarray:
@@ -109,7 +109,8 @@ def fabric(rng, n=SIZE) -> np.ndarray:
     weft = 0.5 + 0.5 * np.cos(2 * np.pi * v / 4)
     checker = ((u // 4 + v // 4) % 2).astype(float)
     weave = checker * warp + (1 - checker) * weft
-    return _grey(0.72 + 0.18 * weave + 0.06 * fbm(rng, n, 10, aniso=(3.0, 1.0)))
+    return _grey(0.72 + 0.14 * weave + 0.06 * fbm(rng, n, 10, aniso=(3.0, 1.0))
+                 + 0.08 * fbm(rng, n, 40, octaves=2))
 
 
 def rock(rng, n=SIZE) -> np.ndarray:
@@ -142,7 +143,7 @@ def plastic(rng, n=SIZE) -> np.ndarray:
 
 def rubber(rng, n=SIZE) -> np.ndarray:
     """Rubber sole/joint cover: fine grain."""
-    return _grey(0.8 + 0.08 * periodic_noise(rng, n, 0.8))
+    return _grey(0.8 + 0.06 * periodic_noise(rng, n, 0.8) + 0.08 * fbm(rng, n, 32, octaves=3))
 
 
 def sky(rng, width=512) -> np.ndarray:
