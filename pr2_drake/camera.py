@@ -119,17 +119,19 @@ class RenderPreset:
 
     Attributes:
         shadows: the sun casts shadows (one shadow map of ``shadow_map_size`` texels).
-        ssao: screen-space ambient occlusion.
+        ssao: screen-space ambient occlusion (``ssao_samples`` samples within
+            ``ssao_radius`` [m]; VTK's default of 128 samples costs three times the frame).
         exposure: tone-mapping exposure (None: no tone mapping).
         sun: intensity of the sun (directional).
-        sky: intensity of each of the sky lights, as seen at the world origin: point lights
-            :data:`SKY_DISTANCE` away around the upper hemisphere, bluish, which never cast
-            shadows (an approximation of sky light; VTK's PBR shading makes point lights fall
-            off with the squared distance, so their set intensity is scaled up by it).
+        sky: intensity of each of the sky lights: point lights :data:`SKY_DISTANCE` away
+            around the upper hemisphere, bluish, which never cast shadows (Drake's VTK engine
+            gives point lights no shadow maps; with the default attenuation they do not fall
+            off with distance). An approximation of sky light in place of the environment map.
         bounce: intensity of the light reflected up by the ground (warm, from below).
         environment_map: image-based lighting from ``models/textures/sky.png``. Off in every
-            preset: VTK prefilters the map when the renderer is made, which takes about three
-            minutes under software (llvmpipe) rendering.
+            preset: VTK prefilters the map (irradiance, specular and BRDF tables of fixed
+            size, whatever the map's size) when the first image is rendered, measured 57 s
+            under software (llvmpipe) rendering for a 64x32 map.
     """
 
     shadows: bool
@@ -140,6 +142,8 @@ class RenderPreset:
     sky: float
     bounce: float
     environment_map: bool = False
+    ssao_samples: int = 16
+    ssao_radius: float = 0.25
 
 
 PRESETS = {
@@ -205,7 +209,8 @@ def renderer_params(quality: str) -> RenderEngineVtkParams:
     if preset.ssao:
         from pydrake.geometry import SsaoParameter
 
-        params.ssao = SsaoParameter()
+        params.ssao = SsaoParameter(radius=preset.ssao_radius, bias=0.01,
+                                    sample_count=preset.ssao_samples, blur=True)
     params.exposure = preset.exposure
     return params
 
