@@ -105,7 +105,8 @@ def _resolutions(text: str) -> list[tuple[int, int]]:
 
 
 def _render_rate(task, quality: str, sizes, frames: int, budget: float):
-    """Colour + depth renders per wall-clock second of the head camera, one figure per size.
+    """(colour + depth renders per wall-clock second, CPU seconds per render) of the head
+    camera, one pair per size (CPU time: of every thread of this process, llvmpipe's too).
 
     The testbed of ``task`` is built once per quality (robot at its start); each frame is one
     ``RenderColorImage`` plus one ``RenderDepthImage`` of the head camera's renderer at the
@@ -137,11 +138,11 @@ def _render_rate(task, quality: str, sizes, frames: int, budget: float):
             query.RenderDepthImage(depth, parent, X_PB)
 
         render()  # warm-up: buffers of this size, shadow map
-        n, start = 0, time.perf_counter()
+        n, start, cpu = 0, time.perf_counter(), time.process_time()
         while n < frames and (n < 2 or time.perf_counter() - start < budget):
             render()
             n += 1
-        rates.append(n / (time.perf_counter() - start))
+        rates.append((n / (time.perf_counter() - start), (time.process_time() - cpu) / n))
     return rates
 
 
@@ -164,13 +165,16 @@ def bench_camera(argv: list[str]) -> int:
     for q in qualities:
         if q not in ("low", "medium", "high"):
             raise SystemExit(f"--quality: expected low, medium or high, got {q!r}")
-    print("head camera, colour + depth renders per second (RenderEngineVtk, no physics)")
-    head = f"  {'task':<6}{'quality':<9}{'resolution':<12}{'frames/s':>9}{'Mpx/s':>8}{'paper':>8}"
+    print("head camera, colour + depth renders per second (RenderEngineVtk, no physics); "
+          "CPU ms: CPU time per render, all threads (steadier than wall time on a shared "
+          "machine)")
+    head = (f"  {'task':<6}{'quality':<9}{'resolution':<12}{'frames/s':>9}{'Mpx/s':>8}"
+            f"{'CPU ms':>8}{'paper':>8}")
     print(head)
     for task in tasks:
         for q in qualities:
             rates = _render_rate(task, q, sizes, a.frames, a.budget)
-            for (w, h), fps in zip(sizes, rates):
+            for (w, h), (fps, cpu) in zip(sizes, rates):
                 res = f"{w}x{h}"
                 paper = PAPER_CAMERA_FPS.get(res)
                 print(f"  {task or 'flat':<6}{q:<9}{res:<12}{fps:>9.1f}{fps * w * h / 1e6:>8.1f}"

@@ -11,11 +11,18 @@ Materials live in ``models/textures/materials.yaml``; the textures are made by
 :mod:`pr2_drake.assets.make_textures`. The base colour factor is the surface's YAML colour, the
 texture a near-grey detail map, so hues are exactly those of the task files. Generated files go
 to a content-keyed cache under the temp folder (nothing is downloaded).
+
+The ``low`` render preset draws the same boxes as plain ``Box`` primitives in their YAML colour
+(Phong shading, no textures): a glTF file switches Drake's VTK engine to PBR shading for the
+whole scene, which costs about half as much again per frame on a software rasteriser. The
+testbed picks the style with :func:`visual_style` while it builds the scene.
 """
 
 from __future__ import annotations
 
 import base64
+import contextlib
+import contextvars
 import functools
 import hashlib
 import json
@@ -58,6 +65,24 @@ def material(name: str) -> Material:
         return materials()[name]
     except KeyError:
         raise ValueError(f"unknown material {name!r}; known: {sorted(materials())}") from None
+
+
+STYLES = ("pbr", "phong")
+_STYLE: contextvars.ContextVar[str] = contextvars.ContextVar("pr2_drake_visual_style",
+                                                            default="pbr")
+
+
+@contextlib.contextmanager
+def visual_style(style: str):
+    """Within the block, textured boxes are drawn as ``"pbr"`` (glTF, textured; the default)
+    or ``"phong"`` (plain coloured ``Box`` primitives, the fast ``low`` preset)."""
+    if style not in STYLES:
+        raise ValueError(f"visual style must be one of {STYLES}, got {style!r}")
+    token = _STYLE.set(style)
+    try:
+        yield
+    finally:
+        _STYLE.reset(token)
 
 
 def _cache_dir() -> Path:
@@ -155,7 +180,14 @@ def add_textured_boxes(plant: MultibodyPlant, name: str,
                        material_name: str, body=None) -> None:
     """Register the boxes (poses in ``body``, default the world) as one visual-only glTF."""
     body = plant.world_body() if body is None else body
-    path = write_boxes_gltf(boxes, rgba, material(material_name))
+    mat = material(material_name)
+    if _STYLE.get() == "phong":
+        color = np.asarray([float(c) for c in rgba] + ([1.0] if len(rgba) == 3 else []))
+        for k, (X, size) in enumerate(boxes):
+            plant.RegisterVisualGeometry(body, X, Box(*[float(v) for v in size]),
+                                         name if len(boxes) == 1 else f"{name}_{k}", color)
+        return
+    path = write_boxes_gltf(boxes, rgba, mat)
     # No Drake material on the instance: the glTF's own PBR material is what renders.
     instance = GeometryInstance(RigidTransform(), Mesh(str(path)), name)
     instance.set_illustration_properties(IllustrationProperties())

@@ -137,8 +137,8 @@ def ground(rng, n=SIZE) -> np.ndarray:
 
 
 def plastic(rng, n=SIZE) -> np.ndarray:
-    """Moulded plastic: nearly uniform, faint orange-peel."""
-    return _grey(0.92 + 0.02 * periodic_noise(rng, n, 2.0))
+    """Moulded plastic: faint orange-peel and soft moulding mottle."""
+    return _grey(0.9 + 0.025 * periodic_noise(rng, n, 2.0) + 0.05 * fbm(rng, n, 36, octaves=3))
 
 
 def rubber(rng, n=SIZE) -> np.ndarray:
