@@ -178,7 +178,7 @@ def bench_camera(argv: list[str]) -> int:
                 res = f"{w}x{h}"
                 paper = PAPER_CAMERA_FPS.get(res)
                 print(f"  {task or 'flat':<6}{q:<9}{res:<12}{fps:>9.1f}{fps * w * h / 1e6:>8.1f}"
-                      f"{'' if paper is None else f'{paper:.1f}':>8}", flush=True)
+                      f"{1e3 * cpu:>8.0f}{'' if paper is None else f'{paper:.1f}':>8}", flush=True)
     return 0
 
 
