@@ -148,7 +148,7 @@ class RenderPreset:
 
 PRESETS = {
     "low": RenderPreset(False, 256, False, None, sun=0.85, sky=0.3, bounce=0.0),
-    "medium": RenderPreset(True, 2048, False, None, sun=1.0, sky=0.5, bounce=0.2),
+    "medium": RenderPreset(True, 2048, False, None, sun=1.4, sky=0.55, bounce=0.25),
     "high": RenderPreset(True, 4096, True, 1.0, sun=1.6, sky=0.55, bounce=0.25),
 }
 # Sky lights: (azimuth, elevation) [deg]; the first four stand where low's fill lights stood.
