@@ -263,7 +263,8 @@ def add_head_camera(
     """
     settings.validate()
     if not scene_graph.HasRenderer(RENDERER_NAME):
-        scene_graph.AddRenderer(RENDERER_NAME, MakeRenderEngineVtk(renderer_params(settings.quality)))
+        scene_graph.AddRenderer(RENDERER_NAME,
+                                MakeRenderEngineVtk(renderer_params(settings.quality)))
     core = RenderCameraCore(
         RENDERER_NAME,
         CameraInfo(settings.width, settings.height, np.radians(settings.fov_y_deg)),

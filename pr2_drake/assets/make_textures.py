@@ -165,7 +165,8 @@ def sky(rng, width=512) -> np.ndarray:
                         np.cos(np.radians(50)) * np.sin(np.radians(-146)), np.sin(np.radians(50))])
     d = np.stack([np.cos(elev) * np.cos(azim), np.cos(elev) * np.sin(azim), np.sin(elev)], -1)
     c = np.clip(d @ sun_dir, -1, 1)
-    col = col + np.array([1.0, 0.95, 0.8]) * (0.6 * np.exp((c - 1) * 400) + 0.25 * np.exp((c - 1) * 20))[..., None]
+    glow = 0.6 * np.exp((c - 1) * 400) + 0.25 * np.exp((c - 1) * 20)
+    col = col + np.array([1.0, 0.95, 0.8]) * glow[..., None]
     return (np.clip(col, 0, 1) * 255 + 0.5).astype(np.uint8)
 
 
