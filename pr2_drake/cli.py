@@ -145,10 +145,13 @@ def cmd_run(args) -> int:
         meshcat = Meshcat()
         print(f"Meshcat: {meshcat.web_url()}", flush=True)
     report = run_episode(scenario, meshcat=meshcat, record=args.record,
+                         record_camera=args.record_camera, camera_depth=args.camera_depth,
                          progress=None if args.quiet else sys.stderr)
     _print_report(report)
     if args.record:
         print(f"  replay written to {args.record}")
+    if args.record_camera:
+        print(f"  head-camera video written to {args.record_camera}")
     if args.report:
         with open(args.report, "w") as f:
             json.dump(report, f, indent=2)
@@ -288,6 +291,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--meshcat", action="store_true", help="start Meshcat and print its URL")
     p.add_argument("--no-wait", action="store_true", help="with --meshcat: exit when done")
     p.add_argument("--record", metavar="HTML", help="write a self-contained replay")
+    p.add_argument("--record-camera", metavar="MP4",
+                   help="write the head camera's colour stream (mp4v) at the camera's rate")
+    p.add_argument("--camera-depth", action="store_true",
+                   help="with --record-camera: depth as a colour map beside the colour")
     p.add_argument("--report", metavar="JSON", help="write the report as JSON")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=cmd_run)

@@ -357,7 +357,8 @@ def _writable(p: Path) -> bool:
 
 
 def run_episode(scenario: Scenario, *, meshcat: Meshcat | None = None,
-                record: str | None = None, progress: TextIO | None = None) -> dict[str, Any]:
+                record: str | None = None, progress: TextIO | None = None,
+                record_camera: str | None = None, camera_depth: bool = False) -> dict[str, Any]:
     """Build the scenario, run its agent until the episode ends, and return the report.
 
     Args:
@@ -365,6 +366,9 @@ def run_episode(scenario: Scenario, *, meshcat: Meshcat | None = None,
         meshcat: draw to this Meshcat (paced at ``scenario.realtime_rate`` unless recording).
         record: write a self-contained Meshcat replay (HTML) to this path.
         progress: where to print progress lines (None: silent).
+        record_camera: write the head camera's colour stream to this mp4 file at the camera's
+            rate (turns the camera on if the scenario has it off); ``camera_depth``: put the
+            depth, as a colour map, beside the colour.
 
     Raises:
         ScenarioError (a ValueError): the episode could not start (bad scenario, agent spec,
@@ -376,8 +380,13 @@ def run_episode(scenario: Scenario, *, meshcat: Meshcat | None = None,
     check_output_path(record, "--record")
     spec = agent_spec(scenario)
     context = dict(task=scenario.task, seed=scenario.seed, **scenario.agent_params)
+    check_output_path(record_camera, "--record-camera")
+    if record_camera and (scenario.camera is None or not scenario.camera.enabled):
+        scenario = replace(scenario, camera=replace(scenario.camera or _task_camera(scenario),
+                                                    enabled=True))
     if record and meshcat is None:
-        meshcat = Meshcat()
+        meshcat = quiet_meshcat()
+    recorders: list = []
     if scenario.diagram:
         from pr2_drake.diagrams import load_diagram_spec, wire_diagram
 
@@ -385,9 +394,9 @@ def run_episode(scenario: Scenario, *, meshcat: Meshcat | None = None,
         if scenario.task is None and diagram.task is not None:
             scenario = replace(scenario, task=diagram.task)
             scenario.validate()
-        episode = _build(scenario, lambda b, tb: wire_diagram(b, tb, diagram,
-                                                               priors=dict(tb.scene.priors),
-                                                               **context), meshcat)
+        episode = _build(scenario, _with_recorder(
+            lambda b, tb: wire_diagram(b, tb, diagram, priors=dict(tb.scene.priors), **context),
+            record_camera, camera_depth, recorders), meshcat)
         policy = None
     else:
         try:
@@ -404,18 +413,26 @@ def run_episode(scenario: Scenario, *, meshcat: Meshcat | None = None,
                     f"agent {spec!r} is neither a Drake System nor has next_action(obs)")
             return agent
 
-        episode = _build(scenario, wire, meshcat)
+        episode = _build(scenario, _with_recorder(wire, record_camera, camera_depth, recorders),
+                         meshcat)
         policy = None if is_system_agent(episode.blocks) else episode.blocks
+    episode.recorder = recorders[0] if recorders else None
+    if meshcat is not None:
+        frame_robot(meshcat, episode.testbed)
     if meshcat is not None and record:
         meshcat.StartRecording()
     if meshcat is not None and scenario.realtime_rate and not record:
         episode.simulator.set_target_realtime_rate(scenario.realtime_rate)
     show = Progress(progress, episode.limit)
     sim_start = time.perf_counter()
-    if policy is None:
-        _run_system(episode, show)
-    else:
-        _run_policy(episode, policy, show)
+    try:
+        if policy is None:
+            _run_system(episode, show)
+        else:
+            _run_policy(episode, policy, show)
+    finally:
+        if episode.recorder is not None:
+            episode.recorder.close()
     sim_wall = time.perf_counter() - sim_start
     show(episode.time, episode.status, force=True)
     if meshcat is not None and record:
@@ -423,6 +440,56 @@ def run_episode(scenario: Scenario, *, meshcat: Meshcat | None = None,
         meshcat.PublishRecording()
         Path(record).write_text(meshcat.StaticHtml())
     return episode.report(spec, time.perf_counter() - wall_start, sim_wall)
+
+
+def _task_camera(scenario: Scenario):
+    """The camera settings the scenario's task asks for (its YAML block), or the defaults."""
+    from pr2_drake.camera import CameraSettings
+
+    if scenario.task is None:
+        return CameraSettings()
+    from pr2_drake.tasks import get_task
+
+    block = dict(get_task(scenario.task).spec.camera)
+    block.pop("enabled", None)
+    return CameraSettings(**block)
+
+
+def quiet_meshcat() -> Meshcat:
+    """A Meshcat for recording only: Drake's "listening at http://..." line is not printed
+    (nobody was asked to open that viewer)."""
+    import logging
+
+    log = logging.getLogger("drake")
+    level = log.level
+    log.setLevel(logging.WARNING)
+    try:
+        return Meshcat()
+    finally:
+        log.setLevel(level)
+
+
+def frame_robot(meshcat: Meshcat, testbed: Testbed) -> None:
+    """Point Meshcat's camera at the robot's start and the task's region (the replay opens
+    there instead of at Meshcat's default view)."""
+    from pr2_drake.viz import overview_eye_target
+
+    eye, target = overview_eye_target(testbed)
+    meshcat.SetCameraPose(eye, target)
+
+
+def _with_recorder(wire: Wiring | None, path: str | None, depth: bool, box: list) -> Wiring | None:
+    if path is None:
+        return wire
+
+    def wire_and_record(builder: DiagramBuilder, testbed: Testbed):
+        from pr2_drake.video import add_camera_recorder
+
+        blocks = wire(builder, testbed) if wire is not None else None
+        box.append(add_camera_recorder(builder, testbed, path, depth))
+        return blocks
+
+    return wire_and_record
 
 
 def _build(scenario: Scenario, wire: Wiring | None, meshcat) -> Episode:

@@ -10,6 +10,7 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.plant import CoulombFriction, MultibodyPlant
 
 from pr2_drake.grasp import Graspable
+from pr2_drake.materials import add_textured_box
 
 GROUND_FRICTION = CoulombFriction(1.0, 1.0)
 
@@ -49,13 +50,20 @@ class Scene:
     add_systems: list[Callable[[Any, MultibodyPlant], None]] = field(default_factory=list)
 
 
-def add_flat_ground(plant: MultibodyPlant, color=(0.55, 0.58, 0.55, 1.0), size: float = 60.0) -> None:
-    """A large box whose top face is the plane z = 0."""
+GROUND_VISUAL_SIZE = 24.0  # [m] side of the drawn ground; beyond it the sky's horizon shows
+
+
+def add_flat_ground(plant: MultibodyPlant, color=(0.55, 0.58, 0.55, 1.0), size: float = 60.0,
+                    material: str = "ground", visual_size: float = GROUND_VISUAL_SIZE) -> None:
+    """A large box (``size`` [m] square, collision) whose top face is the plane z = 0, drawn as a
+    thin textured slab ``visual_size`` [m] square. The drawn ground is kept small and thin:
+    the sun's shadow map spans the scene's bounds, so a 60 m, 1 m thick slab would blur the
+    shadows and shadow its own sides into a black band."""
     X = RigidTransform([0, 0, -0.5])
     plant.RegisterCollisionGeometry(plant.world_body(), X, Box(size, size, 1.0), "ground",
                                     GROUND_FRICTION)
-    plant.RegisterVisualGeometry(plant.world_body(), X, Box(size, size, 1.0), "ground",
-                                 np.asarray(color))
+    add_textured_box(plant, "ground", RigidTransform([0, 0, -0.01]),
+                     (visual_size, visual_size, 0.02), color, material)
 
 
 def build_flat_scene(plant: MultibodyPlant, rng: np.random.Generator) -> Scene:

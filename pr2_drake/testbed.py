@@ -30,6 +30,7 @@ from pydrake.systems.primitives import MatrixGain, Multiplexer
 
 from pr2_drake.actuation import ActuationAdapter
 from pr2_drake.camera import CameraSettings, add_head_camera
+from pr2_drake.materials import visual_style
 from pr2_drake.grasp import GraspSystem
 from pr2_drake.ports import BODY_STATE_SIZE, N_JOINTS
 from pr2_drake.robot.model import BASE_BODY, KuavoMaps, add_kuavo, standing_base_pose
@@ -132,14 +133,19 @@ class Testbed(Diagram):
         self.scene_graph = scene_graph
         self.robot = add_kuavo(plant)
 
-        if config.task is None:
-            build = config.scene_builder or build_flat_scene
-            self.scene: Scene = build(plant, rng)
-        else:
+        if config.task is not None:
             from pr2_drake.tasks import get_task
 
             self.task = get_task(config.task)
-            self.scene = self.task.build_scene(plant, rng)
+        self.camera = _resolve_camera(config.camera, self.task)
+        # The fast preset draws the scene's boxes as Phong primitives (pr2_drake.materials).
+        fast = self.camera.enabled and self.camera.quality == "low"
+        with visual_style("phong" if fast else "pbr"):
+            if config.task is None:
+                build = config.scene_builder or build_flat_scene
+                self.scene: Scene = build(plant, rng)
+            else:
+                self.scene = self.task.build_scene(plant, rng)
         plant.Finalize()
         self.maps = KuavoMaps.from_plant(plant, self.robot)
         self._set_default_pose(config.start or self.scene.start)
@@ -149,7 +155,6 @@ class Testbed(Diagram):
         self._add_actuation(builder)
         self._add_observations(builder)
         self._add_grasp(builder)
-        self.camera = _resolve_camera(config.camera, self.task)
         if self.camera.enabled:
             self._add_camera(builder)
         if self.task is not None:

@@ -10,15 +10,19 @@ from pydrake.geometry import (
     ColorRenderCamera,
     DepthRange,
     DepthRenderCamera,
+    MakeRenderEngineVtk,
     RenderCameraCore,
 )
+
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.sensors import CameraInfo, RgbdSensor
 
-from pr2_drake.camera import RENDERER_NAME, CameraSettings
+from pr2_drake.camera import CameraSettings, renderer_params
 from pr2_drake.testbed import Testbed, TestbedConfig
+
+OVERVIEW_RENDERER = "pr2_vtk_overview"
 
 
 def look_at(p_WEye: np.ndarray, p_WTarget: np.ndarray) -> RigidTransform:
@@ -37,6 +41,11 @@ def look_at(p_WEye: np.ndarray, p_WTarget: np.ndarray) -> RigidTransform:
 
 def default_overview_pose(testbed: Testbed) -> RigidTransform:
     """A camera above and behind the robot's start that sees the task's arena."""
+    return look_at(*overview_eye_target(testbed))
+
+
+def overview_eye_target(testbed: Testbed) -> tuple[np.ndarray, np.ndarray]:
+    """(eye, target) in world [m] of a view that frames the task's arena and the robot."""
     start = testbed.X_WB_start.translation()
     arena = testbed.task.spec.arena if testbed.task is not None else {}
     if arena:
@@ -46,7 +55,7 @@ def default_overview_pose(testbed: Testbed) -> RigidTransform:
     else:
         centre, size = start * np.array([1, 1, 0]) + [0, 0, 0.5], 3.0
     eye = centre + np.array([-0.55 * size, -0.65 * size, 0.6 * size + 1.0])
-    return look_at(eye, centre)
+    return eye, centre
 
 
 def render_task_views(config: TestbedConfig, X_WC: RigidTransform | None = None,
@@ -64,7 +73,13 @@ def render_task_views(config: TestbedConfig, X_WC: RigidTransform | None = None,
     builder = DiagramBuilder()
     testbed = builder.AddSystem(Testbed(config))
     X = X_WC or default_overview_pose(testbed)
-    core = RenderCameraCore(RENDERER_NAME, CameraInfo(width, height, np.radians(fov_y_deg)),
+    # The overview gets its own renderer: two cameras sharing one VTK engine corrupt each
+    # other's shadow maps (whole rooms drawn black).
+    scene_graph = testbed.scene_graph
+    if not scene_graph.HasRenderer(OVERVIEW_RENDERER):
+        scene_graph.AddRenderer(OVERVIEW_RENDERER,
+                                MakeRenderEngineVtk(renderer_params(config.camera.quality)))
+    core = RenderCameraCore(OVERVIEW_RENDERER, CameraInfo(width, height, np.radians(fov_y_deg)),
                             ClippingRange(0.05, 100.0), RigidTransform())
     sensor = builder.AddSystem(RgbdSensor(
         testbed.scene_graph.world_frame_id(), X, ColorRenderCamera(core, False),

@@ -1,6 +1,8 @@
 """The pr2-drake command line, run as a user runs it."""
 
+import base64
 import json
+import re
 import subprocess
 import sys
 
@@ -24,6 +26,12 @@ def test_run_writes_report_and_replay(tmp_path):
     html = replay.read_text()
     assert "<html" in html.lower() and "meshcat" in html.lower()
     assert "score 0 / 0" in out.stdout
+    # No live viewer was asked for: no viewer URL. The replay opens framing the robot.
+    assert "http://" not in out.stdout + out.stderr
+    commands = [base64.b64decode(c) for c in
+                re.findall(r"data:application/octet-binary;base64,([A-Za-z0-9+/=]+)", html)]
+    assert any(b"set_target" in c for c in commands)
+    assert any(b"/Cameras/default/rotated/<object>" in c and b"position" in c for c in commands)
 
 
 def test_progress_lines_on_long_runs():

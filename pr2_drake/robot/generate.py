@@ -17,6 +17,10 @@ Links and frames (x forward, y left, z up):
   +x image right, +y image down).
 
 All robot links share one collision filter group: the robot does not collide with itself.
+
+Visuals: the trunk, thighs, calves, feet, upper arms and forearms are shell meshes generated from
+the same parameters (:mod:`pr2_drake.robot.shells`, written to ``models/kuavo/meshes``); the
+collision geometry stays boxes, cylinders and spheres.
 """
 
 from __future__ import annotations
@@ -93,7 +97,8 @@ class _UrdfWriter:
         ET.SubElement(el, "origin", {"xyz": _fmt(xyz), "rpy": _fmt(rpy)})
         geo = ET.SubElement(el, "geometry")
         (shape_name, shape_attrs), = geometry.items()
-        ET.SubElement(geo, shape_name, {k: _fmt(np.atleast_1d(v)) for k, v in shape_attrs.items()})
+        ET.SubElement(geo, shape_name, {k: v if isinstance(v, str) else _fmt(np.atleast_1d(v))
+                                        for k, v in shape_attrs.items()})
         if color is not None:
             ET.SubElement(el, "material", {"name": color})
         return el
@@ -148,8 +153,37 @@ def _mirror_axis(axis, side_sign: float) -> tuple[float, float, float]:
     return (-ax, ay, -az)
 
 
+MESH_DIR = "meshes"  # shell meshes, next to the URDF (pr2_drake.robot.shells)
+
+
+def _shell(stem: str) -> dict:
+    """URDF geometry of a shell mesh (in its link's frame; visual only)."""
+    return {"mesh": {"filename": f"{MESH_DIR}/{stem}.obj"}}
+
+
+def write_shells(params: RobotParams, urdf_path: Path, check: bool = False) -> list[Path]:
+    """Write the shell meshes next to ``urdf_path``; with ``check``, write nothing and return
+    the stale files."""
+    from pr2_drake.robot.shells import shell_meshes, write_obj
+
+    folder = urdf_path.parent / MESH_DIR
+    folder.mkdir(parents=True, exist_ok=True)
+    stale = []
+    for stem, (verts, faces) in shell_meshes(params.raw).items():
+        path = folder / f"{stem}.obj"
+        tmp = folder / f".{stem}.obj.tmp"
+        write_obj(tmp, verts, faces, f"KUAVO {stem} shell [m], in the {stem} link frame")
+        if check:
+            if not path.is_file() or path.read_text() != tmp.read_text():
+                stale.append(path)
+            tmp.unlink()
+        else:
+            tmp.replace(path)
+    return stale
+
+
 def build_urdf(params: RobotParams) -> str:
-    """Return the URDF text for the given parameters."""
+    """Return the URDF text for the given parameters (shell meshes: :func:`write_shells`)."""
     p = params.raw
     w = _UrdfWriter(p["name"])
     torso = p["torso"]
@@ -160,8 +194,7 @@ def build_urdf(params: RobotParams) -> str:
     # Floating base: pelvis + trunk + head.
     base = w.link("base_link", torso["mass"], torso["com"],
                   _box_inertia(torso["mass"], torso["trunk_size"]))
-    w.shape(base, "visual", {"box": {"size": torso["trunk_size"]}}, torso["trunk_center"],
-            color="shell")
+    w.shape(base, "visual", _shell("trunk"), color="shell")
     w.shape(base, "visual", {"box": {"size": torso["pelvis_size"]}}, torso["pelvis_center"],
             color="joint")
     w.shape(base, "visual", {"sphere": {"radius": torso["head_radius"]}}, torso["head_center"],
@@ -215,8 +248,7 @@ def build_urdf(params: RobotParams) -> str:
         th = legs["thigh"]
         link = w.link(f"{s}_thigh", th["mass"], (0, 0, -th["length"] / 2),
                       _cylinder_inertia(th["mass"], th["radius"], th["length"]))
-        w.shape(link, "visual", {"cylinder": {"radius": th["radius"], "length": th["length"]}},
-                (0, 0, -th["length"] / 2), color="shell")
+        w.shape(link, "visual", _shell("thigh"), color="shell")
         w.shape(link, "collision",
                 {"cylinder": {"radius": th["radius"], "length": th["length"] - 0.06}},
                 (0, 0, -th["length"] / 2))
@@ -225,8 +257,7 @@ def build_urdf(params: RobotParams) -> str:
         ca = legs["calf"]
         link = w.link(f"{s}_calf", ca["mass"], (0, 0, -ca["length"] / 2),
                       _cylinder_inertia(ca["mass"], ca["radius"], ca["length"]))
-        w.shape(link, "visual", {"cylinder": {"radius": ca["radius"], "length": ca["length"]}},
-                (0, 0, -ca["length"] / 2), color="shell")
+        w.shape(link, "visual", _shell("calf"), color="shell")
         w.shape(link, "visual", {"sphere": {"radius": ca["radius"] * 1.15}}, (0, 0, 0),
                 color="joint")
         w.shape(link, "collision",
@@ -244,6 +275,7 @@ def build_urdf(params: RobotParams) -> str:
                 (x_mid, 0, -fh + sole_thickness / 2), color="sole")
         w.shape(link, "visual", {"cylinder": {"radius": 0.03, "length": fh}},
                 (0, 0, -fh / 2), color="joint")
+        w.shape(link, "visual", _shell("foot"), color="shell")
         layout = foot.get("contact_layout", "corners")
         if layout not in ("corners", "line"):
             raise ValueError(f"legs.foot.contact_layout must be 'corners' or 'line', got {layout!r}")
@@ -273,8 +305,7 @@ def build_urdf(params: RobotParams) -> str:
         ua = arms["upper_arm"]
         link = w.link(f"{s}_upper_arm", ua["mass"], (0, 0, -ua["length"] / 2),
                       _cylinder_inertia(ua["mass"], ua["radius"], ua["length"]))
-        w.shape(link, "visual", {"cylinder": {"radius": ua["radius"], "length": ua["length"]}},
-                (0, 0, -ua["length"] / 2), color="shell")
+        w.shape(link, "visual", _shell("upper_arm"), color="shell")
         w.shape(link, "collision",
                 {"cylinder": {"radius": ua["radius"], "length": ua["length"] - 0.05}},
                 (0, 0, -ua["length"] / 2))
@@ -283,8 +314,7 @@ def build_urdf(params: RobotParams) -> str:
         fa = arms["forearm"]
         link = w.link(f"{s}_forearm", fa["mass"], (0, 0, -fa["length"] / 2),
                       _cylinder_inertia(fa["mass"], fa["radius"], fa["length"]))
-        w.shape(link, "visual", {"cylinder": {"radius": fa["radius"], "length": fa["length"]}},
-                (0, 0, -fa["length"] / 2), color="shell")
+        w.shape(link, "visual", _shell("forearm"), color="shell")
         w.shape(link, "visual", {"sphere": {"radius": fa["radius"] * 1.2}}, (0, 0, 0),
                 color="joint")
         w.shape(link, "collision",
@@ -313,17 +343,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--check", action="store_true",
                         help="do not write; exit 1 if the output file differs")
     args = parser.parse_args(argv)
-    text = build_urdf(load_robot_params(args.params))
+    params = load_robot_params(args.params)
+    text = build_urdf(params)
     out = Path(args.out) if args.out else default_urdf_path()
     if args.check:
         current = out.read_text() if out.is_file() else ""
-        if current != text:
+        if current != text or write_shells(params, out, check=True):
             print(f"{out} is stale: run python -m pr2_drake.robot.generate", file=sys.stderr)
             return 1
         print(f"{out} is up to date")
         return 0
     out.write_text(text)
-    print(f"wrote {out}")
+    write_shells(params, out)
+    print(f"wrote {out} and its shell meshes in {out.parent / MESH_DIR}")
     return 0
 
 

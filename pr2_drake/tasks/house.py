@@ -11,11 +11,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.geometry import Box
 from pydrake.math import RigidTransform
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import CoulombFriction, MultibodyPlant
 
+from pr2_drake.materials import add_textured_box
 from pr2_drake.paths import resolve_user_path
 from pr2_drake.scene import add_flat_ground
 from pr2_drake.tasks.regions import Rect, region_from_yaml, rgba
@@ -46,13 +46,12 @@ class Table:
 
 
 def add_box(plant: MultibodyPlant, name: str, center, size, color, collision: bool = True,
-            friction: CoulombFriction = FURNITURE_FRICTION) -> None:
-    """A world-welded box with its centre at ``center`` (x, y, z) [m]."""
+            friction: CoulombFriction = FURNITURE_FRICTION, material: str = "plastic") -> None:
+    """A world-welded box with its centre at ``center`` (x, y, z) [m], textured with
+    ``material`` (:mod:`pr2_drake.materials`)."""
     X = RigidTransform(np.asarray(center, float))
-    shape = Box(*[float(s) for s in size])
-    plant.RegisterVisualGeometry(plant.world_body(), X, shape, name, rgba(color))
-    if collision:
-        plant.RegisterCollisionGeometry(plant.world_body(), X, shape, name, friction)
+    add_textured_box(plant, name, X, size, rgba(color), material,
+                     friction if collision else None)
 
 
 def add_walls(plant: MultibodyPlant, walls: dict) -> None:
@@ -65,7 +64,7 @@ def add_walls(plant: MultibodyPlant, walls: dict) -> None:
             raise ValueError(f"wall segment {i} is not axis-aligned: {p0.tolist()} {p1.tolist()}")
         size = [d[0] + t, t, h] if d[0] > d[1] else [t, d[1] + t, h]
         add_box(plant, f"wall_{i}", [*(p0 + p1) / 2, h / 2], size, walls["color"],
-                friction=WALL_FRICTION)
+                friction=WALL_FRICTION, material=walls.get("material", "plaster"))
 
 
 def add_table(plant: MultibodyPlant, name: str, cfg: dict, top_thickness: float,
@@ -73,12 +72,12 @@ def add_table(plant: MultibodyPlant, name: str, cfg: dict, top_thickness: float,
     """A table from boxes: a top whose upper face is at cfg["height"], on four legs."""
     (cx, cy), (sx, sy), h = cfg["center"], cfg["size"], float(cfg["height"])
     add_box(plant, f"{name}_top", [cx, cy, h - top_thickness / 2], [sx, sy, top_thickness],
-            cfg["color"])
+            cfg["color"], material=cfg.get("material", "wood"))
     leg_h = h - top_thickness
     for k, (ux, uy) in enumerate([(1, 1), (1, -1), (-1, 1), (-1, -1)]):
         add_box(plant, f"{name}_leg_{k}",
                 [cx + ux * (sx / 2 - leg), cy + uy * (sy / 2 - leg), leg_h / 2],
-                [leg, leg, leg_h], cfg["leg_color"])
+                [leg, leg, leg_h], cfg["leg_color"], material=cfg.get("leg_material", "wood"))
 
 
 def add_usd_furniture(plant: MultibodyPlant, name: str, cfg: dict) -> None:
@@ -98,8 +97,8 @@ def add_house(plant: MultibodyPlant, scene: dict) -> dict[str, Table]:
     for name, room in scene["rooms"].items():
         r = region_from_yaml(room["rect"])
         X = RigidTransform([r.center[0], r.center[1], FLOOR_TILE / 2])
-        plant.RegisterVisualGeometry(plant.world_body(), X, Box(*r.size, FLOOR_TILE),
-                                     f"floor_{name}", rgba(room["floor_color"]))
+        add_textured_box(plant, f"floor_{name}", X, (*r.size, FLOOR_TILE),
+                         rgba(room["floor_color"]), room.get("floor_material", "parquet"))
     add_walls(plant, scene["walls"])
     tables = {}
     for name, cfg in scene["furniture"].items():
@@ -113,5 +112,5 @@ def add_house(plant: MultibodyPlant, scene: dict) -> dict[str, Table]:
     for d in scene.get("decor", []):
         sx, sy, sz = d["size"]
         add_box(plant, d["name"], [d["center"][0], d["center"][1], sz / 2], [sx, sy, sz],
-                d["color"])
+                d["color"], material=d.get("material", "plastic"))
     return tables

@@ -56,6 +56,7 @@ from pydrake.multibody.tree import (
 from pydrake.systems.framework import BasicVector, LeafSystem
 
 from pr2_drake.lifetime import weak_calc
+from pr2_drake.materials import add_textured_box, add_textured_boxes
 from pr2_drake.scene import GROUND_FRICTION, Scene, add_flat_ground
 from pr2_drake.tasks.base import EpisodeStatus, Referee, ScoreEvent, TaskDefinition, TaskSpec
 from pr2_drake.tasks.regions import (
@@ -255,6 +256,25 @@ class MovingBarReferee(Referee):
         return "Get over the moving bar without touching it: step over it or jump over it."
 
 
+def _add_track(plant: MultibodyPlant, layout: "BarLayout", colors: dict) -> None:
+    """Visual-only brushed-metal rails beyond both ends of the bar, along its whole run, with
+    end blocks, so the bar reads as a machine on a track (no collision: the robot never
+    reaches them)."""
+    p = layout.profile
+    lo, hi = p.start_offset - 0.15, p.start_offset + p.travel + 0.15
+    X_WT = layout.X_WTrack()
+    rail_h = layout.clearance + layout.size[2] + 0.02
+    z_mid = rail_h / 2 - X_WT.translation()[2]  # in the track frame (origin at bar centre)
+    boxes = []
+    for sign in (-1, 1):
+        x = sign * (layout.size[0] / 2 + 0.06)
+        boxes.append((X_WT @ RigidTransform([x, (lo + hi) / 2, z_mid]), (0.08, hi - lo, rail_h)))
+        for y in (lo, hi):
+            boxes.append((X_WT @ RigidTransform([x, y, z_mid + 0.03]), (0.12, 0.08, rail_h + 0.06)))
+    add_textured_boxes(plant, f"{layout.name}_track_rails", boxes,
+                       rgba(colors.get("rails", [0.62, 0.64, 0.66])), "brushed_metal")
+
+
 class Task(TaskDefinition):
     def build_scene(self, plant: MultibodyPlant, rng: np.random.Generator) -> Scene:
         s = self.spec.scene
@@ -270,8 +290,9 @@ class Task(TaskDefinition):
         bar = plant.AddRigidBody(layout.name, instance, inertia)
         shape = Box(*layout.size)
         plant.RegisterCollisionGeometry(bar, RigidTransform(), shape, layout.name, GROUND_FRICTION)
-        plant.RegisterVisualGeometry(bar, RigidTransform(), shape, layout.name,
-                                     rgba(colors["bar"]))
+        add_textured_box(plant, layout.name, RigidTransform(), layout.size, rgba(colors["bar"]),
+                         "painted_metal", body=bar)
+        _add_track(plant, layout, colors)
         track = plant.AddFrame(FixedOffsetFrame(f"{layout.name}_track", plant.world_frame(),
                                                 layout.X_WTrack()))
         slider = plant.AddJoint(PrismaticJoint(f"{layout.name}_slider", track, bar.body_frame(),

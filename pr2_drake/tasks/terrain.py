@@ -15,16 +15,16 @@ from pydrake.geometry import Box
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.multibody.plant import MultibodyPlant
 
+from pr2_drake.materials import add_textured_box, add_textured_boxes
 from pr2_drake.scene import GROUND_FRICTION
 from pr2_drake.tasks.regions import Rect, rgba
 
 
 def _add_box(plant: MultibodyPlant, name: str, X_WB: RigidTransform, size, color,
-             collision: bool = True) -> None:
-    box = Box(*size)
-    if collision:
-        plant.RegisterCollisionGeometry(plant.world_body(), X_WB, box, name, GROUND_FRICTION)
-    plant.RegisterVisualGeometry(plant.world_body(), X_WB, box, name, rgba(color))
+             collision: bool = True, material: str = "concrete") -> None:
+    """A world-welded box: plain Box collision, textured glTF visual (pr2_drake.materials)."""
+    add_textured_box(plant, name, X_WB, size, rgba(color), material,
+                     GROUND_FRICTION if collision else None)
 
 
 @dataclass
@@ -101,11 +101,16 @@ class RockyRoad:
 
     def add_to(self, plant: MultibodyPlant, prefix: str = "rock") -> None:
         nx, ny = self.cells
+        by_color: dict[int, list] = {}
         for i in range(nx):
             for j in range(ny):
                 X, size = self.stone_pose(i, j)
-                _add_box(plant, f"{prefix}_{i}_{j}", X, size,
-                         self.colors[self.color_index[i, j]])
+                plant.RegisterCollisionGeometry(plant.world_body(), X, Box(*size),
+                                                f"{prefix}_{i}_{j}", GROUND_FRICTION)
+                by_color.setdefault(int(self.color_index[i, j]), []).append((X, size))
+        # One visual mesh per stone colour: a few glTF files instead of one per stone.
+        for c, boxes in sorted(by_color.items()):
+            add_textured_boxes(plant, f"{prefix}_visual_{c}", boxes, rgba(self.colors[c]), "rock")
 
     def height(self, x: float, y: float) -> float | None:
         """Top-face height of the stone under (x, y) [m], or None off the road."""
