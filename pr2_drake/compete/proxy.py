@@ -1,0 +1,120 @@
+"""One episode with the simulator and referee here and the agent in its sandbox.
+
+The parent builds the :class:`pr2_drake.episode.Episode` (no agent blocks) and drives it
+through :class:`pr2_drake.env.Env`: each control tick it sends the observation (a copy; camera
+frames through shared memory) and applies the action that comes back, validated like any
+other. Whatever the agent does ends at most its own episode, with a named termination and the
+points earned before it::
+
+    from pr2_drake.compete.proxy import run_sandboxed_episode
+    report = run_sandboxed_episode(Scenario(task=1, seed=0, seconds=5))
+"""
+
+from __future__ import annotations
+
+import hashlib
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pr2_drake.compete.sandbox import AgentFault, AgentProcess, SandboxLimits
+from pr2_drake.episode import Episode, agent_spec
+from pr2_drake.scenario import Scenario
+
+
+def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None = None,
+                          limits: SandboxLimits | None = None,
+                          hide: tuple[Path, ...] = ()) -> dict[str, Any]:
+    """Run ``scenario``'s agent (``scenario.agent`` or the task's built-in one) sandboxed.
+
+    Args:
+        scenario: the episode; ``agent`` is imported inside the sandbox.
+        submission: a folder copied into the sandbox and put on the agent's import path.
+        limits: the sandbox's limits (default :class:`SandboxLimits`).
+        hide: folders the agent must not see.
+
+    Returns:
+        The report of :meth:`Episode.report` plus ``steps``, ``step_time_mean`` and
+        ``step_time_max`` (the agent's round trip per action, wall clock [s]),
+        ``agent_compute_mean`` (its own time per action [s]), ``ipc_overhead_mean`` (round trip
+        minus compute [s]), ``sandbox`` ("bwrap" or "none") and ``state_digest`` (a hash of the
+        final plant state, for determinism checks).
+    """
+    from pr2_drake.env import Env, InvalidAction
+
+    limits = limits or SandboxLimits()
+    wall_start = time.perf_counter()
+    scenario.validate()
+    spec = agent_spec(scenario)
+    if scenario.diagram:
+        raise ValueError("a sandboxed episode runs an agent, not a diagram YAML")
+    spec, submission = _file_spec(spec, submission)
+    episode = Episode(scenario)
+    priors = dict(episode.testbed.scene.priors)
+    kwargs = dict(task=scenario.task, seed=scenario.seed, priors=priors, **scenario.agent_params)
+    agent = AgentProcess(None if submission is None else Path(submission), limits, hide)
+    rtts: list[float] = []
+    computes: list[float] = []
+    sim_wall = 0.0
+    try:
+        agent.start()
+        info, _ = agent.request({"op": "init", "spec": spec, "kwargs": kwargs},
+                                limits.startup_seconds)
+        dt = scenario.control_dt or info.get("control_dt") or scenario.plant.time_step
+        dt = float(dt) if isinstance(dt, (int, float)) and 0 < dt <= 1.0 else None
+        env = Env.from_episode(episode, control_dt=dt)
+        obs = env.observation()
+        agent.request({"op": "reset", "obs": obs}, limits.startup_seconds)
+        deadline = wall_start + limits.episode_seconds
+        done = env.status.done
+        while not done:
+            if time.perf_counter() > deadline:
+                raise AgentFault("agent_timeout", f"the episode's wall-clock limit of "
+                                                  f"{limits.episode_seconds:g} s")
+            reply, rtt = agent.request({"op": "act", "obs": obs}, limits.step_seconds)
+            rtts.append(rtt)
+            c = reply.get("compute")
+            computes.append(float(c) if isinstance(c, (int, float)) and 0 <= c <= rtt else rtt)
+            t0 = time.perf_counter()
+            try:
+                done, _, obs = env.step(reply.get("action"))
+            except InvalidAction as e:
+                raise AgentFault("invalid_action", str(e)) from None
+            sim_wall += time.perf_counter() - t0
+    except AgentFault as f:
+        episode.end(f.termination, f.message)
+    finally:
+        isolated = agent.isolated
+        agent.close()
+    report = episode.report(spec, time.perf_counter() - wall_start, sim_wall or None)
+    r = np.asarray(rtts) if rtts else np.zeros(1)
+    c = np.asarray(computes) if computes else np.zeros(1)
+    report.update(
+        steps=len(rtts),
+        step_time_mean=round(float(r.mean()), 6), step_time_max=round(float(r.max()), 6),
+        agent_compute_mean=round(float(c.mean()), 6),
+        ipc_overhead_mean=round(float((r - c).mean()), 6),
+        sandbox="bwrap" if isolated else "none",
+        state_digest=state_digest(episode),
+    )
+    return report
+
+
+def _file_spec(spec: str, submission):
+    """A ``path/to/file.py:Class`` spec outside a submission: its folder becomes the
+    submission (the sandbox sees only its copy)."""
+    module, _, cls = spec.partition(":")
+    if submission is None and module.endswith(".py"):
+        file = Path(module).resolve()
+        if not file.is_file():
+            raise ValueError(f"agent {spec!r}: file {module!r} not found")
+        return f"{file.name}:{cls}", file.parent
+    return spec, submission
+
+
+def state_digest(episode: Episode) -> str:
+    """A short hash of the plant's state (positions and velocities, exact bits)."""
+    x = episode.testbed.GetOutputPort("plant_state").Eval(episode.tb_context)
+    return hashlib.sha256(np.ascontiguousarray(x, dtype=np.float64).tobytes()).hexdigest()[:16]
