@@ -10,6 +10,16 @@
         the time from invoking the command to its first simulated step.
     pr2-drake bench walking [...]
         the walking controller's benchmark (pr2_drake.bench.walking).
+    pr2-drake bench perception [--views 100] [--qualities low,medium,high]
+        the task-6 object detector on rendered head-camera views (pr2_drake.bench.perception).
+    pr2-drake bench whole-body [...]
+        the whole-body controller: hand reach, held force, real-time factor
+        (pr2_drake.bench.whole_body).
+    pr2-drake bench jumping [...]
+        vertical jumps of the jump controller (pr2_drake.bench.jumping).
+    pr2-drake bench stairs [--quick] [--repeats 5]
+        up then down staircases per riser height: falls, time, real-time factor
+        (pr2_drake.bench.stairs).
 """
 
 from __future__ import annotations
@@ -133,17 +143,24 @@ def bench_startup(argv: list[str]) -> int:
     return 0
 
 
-def bench_walking(argv: list[str]) -> int:
-    try:
-        from pr2_drake.bench.walking import main as walking_main
-    except ImportError as e:
-        print(f"walking benchmark unavailable: {e}", file=sys.stderr)
-        return 2
-    return walking_main(argv)
+def _module_benchmark(module: str):
+    """A benchmark whose ``main(argv)`` lives in ``pr2_drake.bench.<module>`` (imported late)."""
+
+    def run(argv: list[str]) -> int:
+        import importlib
+
+        return importlib.import_module(f"pr2_drake.bench.{module}").main(argv)
+
+    return run
 
 
 BENCHMARKS = {"sim": bench_sim, "camera": bench_camera, "startup": bench_startup,
-              "walking": bench_walking}
+              "walking": _module_benchmark("walking"),
+              "whole-body": _module_benchmark("whole_body"),
+              "perception": _module_benchmark("perception"),
+              "jumping": _module_benchmark("jumping"),
+              "stairs": _module_benchmark("stairs")}
+"""Every ``pr2-drake bench`` command by name; the CLI's choices come from here."""
 
 
 def run_benchmark(what: str, argv: list[str]) -> int:

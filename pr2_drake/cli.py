@@ -8,7 +8,7 @@
 
 Every episode is a :class:`pr2_drake.scenario.Scenario`: the YAML file, then the flags, then
 the ``--set`` overrides.
-    pr2-drake bench {sim,camera,startup,walking} [...]
+    pr2-drake bench {sim,camera,startup,walking,whole-body,perception,...} [...]
     pr2-drake tasks
 
 Heavy imports (pydrake) happen inside the commands so that ``--help`` answers at once.
@@ -299,8 +299,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="JSON", help="write all reports and the summary")
     p.set_defaults(func=cmd_eval)
 
-    p = sub.add_parser("bench", help="benchmarks: sim, camera, startup, walking")
-    p.add_argument("what", choices=("sim", "camera", "startup", "walking", "all"))
+    from pr2_drake.benchmarks import BENCHMARKS
+
+    p = sub.add_parser("bench", help="benchmarks: " + ", ".join(BENCHMARKS))
+    p.add_argument("what", choices=(*BENCHMARKS, "all"))
     p.add_argument("rest", nargs=argparse.REMAINDER, help="options of that benchmark")
     p.set_defaults(func=cmd_bench)
 

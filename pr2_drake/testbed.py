@@ -16,6 +16,7 @@ the camera is on), and with a task: ``score`` (1), ``episode``
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Role
@@ -56,6 +57,8 @@ class TestbedConfig:
         arm_gains, leg_gains: default (stiffness [Nm/rad], damping [Nm s/rad]) of the
             position/velocity modes when a command carries none.
         grasp_period: how often pick/release commands are sampled [s].
+        scene_builder: without a task, ``f(plant, rng) -> Scene`` builds the scene instead of
+            flat ground (benchmarks with their own terrain, e.g. ``bench stairs``).
     """
 
     __test__ = False  # not a pytest test class
@@ -70,6 +73,7 @@ class TestbedConfig:
     arm_gains: tuple[float, float] = (60.0, 3.0)
     leg_gains: tuple[float, float] = (400.0, 8.0)
     grasp_period: float = 0.01
+    scene_builder: Callable[[MultibodyPlant, np.random.Generator], Scene] | None = None
 
     def validate(self) -> None:
         if not (0 < self.time_step <= 0.02):
@@ -129,7 +133,8 @@ class Testbed(Diagram):
         self.robot = add_kuavo(plant)
 
         if config.task is None:
-            self.scene: Scene = build_flat_scene(plant, rng)
+            build = config.scene_builder or build_flat_scene
+            self.scene: Scene = build(plant, rng)
         else:
             from pr2_drake.tasks import get_task
 

@@ -26,10 +26,10 @@ from typing import Any
 DEFAULT_AGENTS: dict[int | None, str] = {
     None: "pr2_drake.controllers.standing:StandingController",
     1: "pr2_drake.agents.walk_to_goal:RockyRoadAgent",
-    2: "pr2_drake.controllers.standing:StandingController",
-    3: "pr2_drake.controllers.standing:StandingController",
+    2: "pr2_drake.agents.valve:ValveAgent",
+    3: "pr2_drake.agents.moving_bar:MovingBarAgent",
     4: "pr2_drake.agents.walk_to_goal:SlopeAgent",
-    5: "pr2_drake.controllers.standing:StandingController",
+    5: "pr2_drake.agents.steps_button:StepsButtonAgent",
     6: "pr2_drake.controllers.standing:StandingController",
 }
 

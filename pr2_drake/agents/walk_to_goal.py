@@ -134,10 +134,8 @@ class WalkToGoalAgent(Diagram):
             wparams = wparams.with_overrides(self.WALKING_OVERRIDES)
         builder = DiagramBuilder()
         planner = builder.AddNamedSystem("planner", GoalVelocityPlanner(goal, planner_params))
-        walker = builder.AddNamedSystem("walker", WalkingController(wparams))
         terrain = self.make_terrain(priors, np.asarray(goal, dtype=float))
-        if terrain is not None:
-            walker.core.terrain = terrain
+        walker = builder.AddNamedSystem("walker", WalkingController(wparams, terrain=terrain))
         arms = builder.AddNamedSystem("arm_posture", ArmPosture())
         builder.ExportInput(walker.GetInputPort("joint_state"), "joint_state")
         body = builder.ExportInput(walker.GetInputPort("body_state"), "body_state")

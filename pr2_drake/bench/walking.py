@@ -42,15 +42,26 @@ PUSH_POINT_B = np.array([0.0, 0.0, 0.20])  # [m] torso centre in base_link
 
 
 class WalkingSim:
-    """Testbed + WalkingController + ArmPosture, with a settable command and pushes."""
+    """Testbed + WalkingController + ArmPosture, with a settable command and pushes.
 
-    def __init__(self, params: WalkingParams | None = None, meshcat=None):
+    With ``arms="effort"`` the walking controller's QP drives the arms (no ArmPosture); then
+    :meth:`set_hand_targets` sets its ``hand_targets`` input and its ``pick_state`` input
+    follows the testbed's. ``controller_kwargs`` go to the WalkingController (footsteps,
+    terrain). ``add_systems(builder, testbed)`` may add systems before the build.
+    """
+
+    def __init__(self, params: WalkingParams | None = None, meshcat=None, arms: str = "position",
+                 add_systems=None, pick_state_from_testbed: bool = True, **controller_kwargs):
         from pr2_drake.episode import Episode
         from pr2_drake.scenario import Scenario
 
-        self.walker = WalkingController(params)
-        self.arms = ArmPosture(
-            stiffness=self.walker.params.arm_stiffness, damping=self.walker.params.arm_damping)
+        self.walker = WalkingController(params, arms=arms, **controller_kwargs)
+        self.arms = None
+        if arms != "effort":
+            self.arms = ArmPosture(stiffness=self.walker.params.arm_stiffness,
+                                   damping=self.walker.params.arm_damping)
+        self._add_systems = add_systems
+        self._pick_state_from_testbed = pick_state_from_testbed
         episode = Episode(Scenario(seconds=math.inf), self._wire, meshcat)
         self.episode, self.testbed = episode, episode.testbed
         self.diagram, self.simulator, self.context = (episode.diagram, episode.simulator,
@@ -63,28 +74,46 @@ class WalkingSim:
         self.base = self.plant.GetBodyByName(BASE_BODY, tb.robot)
         self._force_port = self.plant.get_applied_spatial_force_input_port()
         self.set_command(0.0, 0.0, 0.0)
+        if arms == "effort":
+            self.set_hand_targets([None, None])
         self.push(None)
         self.simulator.Initialize()
 
     def _wire(self, builder: DiagramBuilder, tb) -> None:
         builder.AddSystem(self.walker)
-        builder.AddSystem(self.arms)
         builder.Connect(tb.GetOutputPort("joint_state"), self.walker.GetInputPort("joint_state"))
         builder.Connect(tb.GetOutputPort("body_state"), self.walker.GetInputPort("body_state"))
         builder.Connect(self.walker.GetOutputPort("legs_command"), tb.GetInputPort("legs_command"))
-        builder.Connect(self.arms.GetOutputPort("arms_command"), tb.GetInputPort("arms_command"))
+        if self.arms is None:
+            builder.Connect(self.walker.GetOutputPort("arms_command"),
+                            tb.GetInputPort("arms_command"))
+            if self._pick_state_from_testbed:
+                builder.Connect(tb.GetOutputPort("pick_state"),
+                                self.walker.GetInputPort("pick_state"))
+        else:
+            builder.AddSystem(self.arms)
+            builder.Connect(self.arms.GetOutputPort("arms_command"),
+                            tb.GetInputPort("arms_command"))
+        if self._add_systems is not None:
+            self._add_systems(builder, tb)
+
+    def set_hand_targets(self, targets) -> None:
+        """[left, right] hand targets p_WH [m] (None each: no target); arms="effort" only."""
+        self.walker.GetInputPort("hand_targets").FixValue(self.walker_context, list(targets))
 
     def set_command(self, vx: float, vy: float, yaw_rate: float) -> None:
         self.walker.GetInputPort("velocity_command").FixValue(
             self.walker_context, np.array([vx, vy, yaw_rate], dtype=float))
 
-    def push(self, force_W: np.ndarray | None) -> None:
-        """Apply a constant force [N] (in W) at the torso centre, or None to stop."""
+    def push(self, force_W: np.ndarray | None, body=None, p_BQ=PUSH_POINT_B) -> None:
+        """Apply a constant force [N] (in W) at the torso centre (or at point p_BQ [m] of
+        ``body``), or None to stop."""
         forces = []
         if force_W is not None:
+            body = self.base if body is None else body
             f = ExternallyAppliedSpatialForce()
-            f.body_index = self.base.index()
-            f.p_BoBq_B = PUSH_POINT_B
+            f.body_index = body.index()
+            f.p_BoBq_B = np.asarray(p_BQ, dtype=float)
             f.F_Bq_W = SpatialForce(np.zeros(3), np.asarray(force_W, dtype=float))
             forces.append(f)
         self._force_port.FixValue(self.plant_context, forces)

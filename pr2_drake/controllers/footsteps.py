@@ -75,7 +75,13 @@ def clamp_to_stance(target: np.ndarray, stance: np.ndarray, stance_side: int,
 class FlatTerrain:
     """Terrain model of the footstep planner: a swing sole lands at the stance sole's height,
     level. Subclasses estimate the height and pitch of a foothold from what the robot knows
-    (its stance sole, the task's priors)."""
+    (its stance sole, the task's priors).
+
+    ``known_heights``: whether :meth:`foothold` sets the swing target's height and pitch (then
+    touchdown is detected against that target height; flat: against the stance sole).
+    """
+
+    known_heights = False
 
     def foothold(self, stance: np.ndarray, stance_slope: float,
                  target: np.ndarray) -> tuple[float, float]:
@@ -88,6 +94,12 @@ class FlatTerrain:
         """
         return float(stance[2]), 0.0
 
+    def swing_clearance(self, start: np.ndarray, target: np.ndarray) -> float | None:
+        """Height [m, W] a swing sole from ``start`` to ``target`` (x, y, z, yaw) must clear
+        (it lifts, moves, then lowers: :class:`pr2_drake.controllers.swing.SwingTrajectory`),
+        or None for the plain swing curve (no edge on the way; the default)."""
+        return None
+
 
 class SlopeTerrain(FlatTerrain):
     """A planar incline of known angle between a lower and an upper level (the task-4 prior).
@@ -99,6 +111,8 @@ class SlopeTerrain(FlatTerrain):
     Off the incline the foothold is level at the stance height (the first step onto the ramp
     lands early and is caught by touchdown detection).
     """
+
+    known_heights = True
 
     def __init__(self, angle: float, goal, z_top: float, on_slope_fraction: float = 0.5):
         self.goal = np.asarray(goal, dtype=float)[:2]
@@ -128,8 +142,138 @@ class RoughTerrain(FlatTerrain):
     so that it meets the ground while still descending (early rather than late), and the
     touchdown is detected from contact (a blocked descent)."""
 
+    known_heights = True
+
     def __init__(self, drop: float):
         self.drop = float(drop)
 
     def foothold(self, stance, stance_slope, target):
         return float(stance[2]) - self.drop, 0.0
+
+
+class FootstepPlanner:
+    """Interface of a footstep planner: which sole steps first and where the next soles land.
+
+    The gait state machine (:class:`pr2_drake.controllers.gait.GaitPlanner`) asks it at the
+    start of a walk and at every touchdown; step adjustment may then move the landing point.
+    Footsteps are sole poses (x, y, z, yaw) in W [m, rad]; sides 0 left, 1 right.
+
+    ``adjustable``: whether step adjustment (capture point) may move a planned landing point
+    and time (True: robust to pushes; False: the soles land on the planned footholds).
+    """
+
+    adjustable = True
+
+    def keep_walking(self, command: np.ndarray, footholds: list) -> bool:
+        """Whether to (keep) step(ping), given the velocity command and the soles' footholds."""
+        raise NotImplementedError
+
+    def first_swing_side(self, command: np.ndarray, footholds: list) -> int:
+        """The side that lifts off first when a walk starts."""
+        raise NotImplementedError
+
+    def next_steps(self, stance: np.ndarray, stance_side: int, heading: float,
+                   command: np.ndarray, n: int) -> list[np.ndarray]:
+        """The ``n`` footholds after a sole at ``stance`` (side ``stance_side``): the first on
+        the other side, then alternating."""
+        raise NotImplementedError
+
+    def observe(self, footholds: list) -> None:
+        """The soles' footholds now, [left, right] (x, y, z, yaw) in W, given every tick before
+        any planning (a planner that needs the swing sole's start keeps them). Default: unused."""
+
+    def constrain(self, target_xy: np.ndarray, planned: np.ndarray) -> np.ndarray:
+        """Where an adjusted landing point (xy, W) of the planned footstep ``planned`` (x, y,
+        z, yaw) may go (e.g. kept on its tread); step adjustment calls it. Default: anywhere."""
+        return target_xy
+
+
+class VelocityFootstepPlanner(FootstepPlanner):
+    """Footsteps from the velocity command (:func:`next_footstep`), clamped per step.
+
+    Args:
+        gait: step period, width and limits.
+        start_threshold: |command| above this [m/s or rad/s] starts (and keeps) walking.
+    """
+
+    def __init__(self, gait: GaitParams, start_threshold: float):
+        self.gait = gait
+        self.start_threshold = float(start_threshold)
+
+    def keep_walking(self, command, footholds) -> bool:
+        th = self.start_threshold
+        return bool(abs(command[0]) > th or abs(command[1]) > th or abs(command[2]) > th)
+
+    def first_swing_side(self, command, footholds) -> int:
+        # Lead with the foot on the side of motion (sideways or turning), else the right foot.
+        th = self.start_threshold
+        if abs(command[1]) > th:
+            return 0 if command[1] > 0 else 1
+        if abs(command[2]) > th:
+            return 0 if command[2] > 0 else 1
+        return 1
+
+    def next_steps(self, stance, stance_side, heading, command, n):
+        steps = []
+        side = stance_side
+        for _ in range(n):
+            stance = next_footstep(stance, side, heading, command, self.gait)
+            side = 1 - side
+            steps.append(stance)
+        return steps
+
+
+class FixedFootstepPlanner(FootstepPlanner):
+    """A given list of footholds, stepped in order, then stop with the feet side by side.
+
+    Args:
+        footholds: sole poses (x, y, z, yaw) in W, alternating sides, the first on
+            ``first_side``.
+        first_side: side of the first footstep (0 left, 1 right).
+        gait: the nominal step width (the closing step beside the last foothold).
+        tolerance: [m] a sole within this of a listed foothold (same side) has landed there.
+        adjustable: let step adjustment move the landings (default False: land on the list).
+    """
+
+    def __init__(self, footholds, first_side: int, gait: GaitParams, tolerance: float = 0.05,
+                 adjustable: bool = False):
+        self.adjustable = bool(adjustable)
+        self.steps = [np.asarray(f, dtype=float).reshape(4) for f in footholds]
+        if not self.steps or any(not np.all(np.isfinite(f)) for f in self.steps):
+            raise ValueError("FixedFootstepPlanner: footholds must be finite (x, y, z, yaw)")
+        if first_side not in (0, 1):
+            raise ValueError(f"FixedFootstepPlanner: first_side must be 0 or 1, got {first_side}")
+        self.first_side = first_side
+        self.gait = gait
+        self.tolerance = float(tolerance)
+
+    def side(self, k: int) -> int:
+        return self.first_side if k % 2 == 0 else 1 - self.first_side
+
+    def _index(self, sole: np.ndarray, side: int) -> int:
+        """Index of the listed foothold at ``sole`` (same side), or -1."""
+        for k in range(len(self.steps) - 1, -1, -1):
+            if (self.side(k) == side
+                    and np.hypot(*(self.steps[k][:2] - sole[:2])) < self.tolerance):
+                return k
+        return -1
+
+    def keep_walking(self, command, footholds) -> bool:
+        last = len(self.steps) - 1
+        f = footholds[self.side(last)]
+        return f is None or self._index(f, self.side(last)) != last
+
+    def first_swing_side(self, command, footholds) -> int:
+        return self.first_side
+
+    def next_steps(self, stance, stance_side, heading, command, n):
+        k = self._index(stance, stance_side)
+        out = list(self.steps[k + 1:k + 1 + n])
+        side = stance_side if not out else self.side(k + len(out))
+        last = stance if not out else out[-1]
+        zero = np.zeros(3)
+        while len(out) < n:  # then close: step beside the last foothold
+            last = next_footstep(last, side, float(last[3]), zero, self.gait)
+            side = 1 - side
+            out.append(last)
+        return out

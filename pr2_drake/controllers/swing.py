@@ -58,6 +58,10 @@ class SwingTrajectory:
         # max_descent [m] below the target, until contact (a late landing is a short one).
         self.descent_speed = descent_speed
         self.max_descent = max_descent
+        # Over an edge: the height [m, W] to clear (None: the plain curve above) and the
+        # fractions of the swing phase for the lift and the lowering (see _clearance_z).
+        self.clear_z: float | None = None
+        self.clear_fractions = (0.3, 0.3)
 
     def phase(self, t: float) -> float:
         """Fraction of the planned single support elapsed (can exceed 1 when landing late)."""
@@ -98,6 +102,8 @@ class SwingTrajectory:
         """p, v, a (3 each, W) and yaw, yaw rate of the desired sole at time t."""
         self._advance(t)
         tau, r = self._tau, self._rate
+        if self.clear_z is not None:
+            return self._evaluate_clearance(t, tau, r)
         f = self.lift_fraction
         k = 1.0 / (1.0 - f)
         s, ds, dds = _quintic((tau - f) * k)  # horizontal (and yaw) blend
@@ -119,6 +125,40 @@ class SwingTrajectory:
         p[2] += bump * 64 * tau**3 * (1 - tau) ** 3
         v[2] += bump * 64 * 3 * tau**2 * (1 - tau) ** 2 * (1 - 2 * tau) * r
         a[2] += bump * 64 * 6 * tau * (1 - tau) * (1 - 5 * tau + 5 * tau * tau) * r * r
+        late = (t - self.t0) - self.t_land
+        if tau >= 1.0 and late > 0:
+            p[2] = self.target[2] - min(self.descent_speed * late, self.max_descent)
+            v[2] = -self.descent_speed if self.descent_speed * late < self.max_descent else 0.0
+            a[2] = 0.0
+        return p, v, a, yaw, yawd
+
+    def _evaluate_clearance(self, t: float, tau: float, r: float):
+        """Lift, move, lower: the sole rises from its start height to ``clear_z`` over the
+        first ``clear_fractions[0]`` of the phase, holds it, and lowers to the target height
+        over the last ``clear_fractions[1]``; the horizontal motion (and yaw) blends between
+        60 % of the lift and 40 % into the lowering, so toe and heel pass the edge high."""
+        lift, lower = self.clear_fractions
+        z0, z1 = float(self.start[2]), float(self.target[2])
+        zc = max(float(self.clear_z), z0, z1)
+        h0, h1 = 0.6 * lift, 1.0 - 0.6 * lower
+        k = 1.0 / (h1 - h0)
+        s, ds, dds = _quintic((tau - h0) * k)
+        ds, dds = ds * k, dds * k * k
+        d = self.target[:3] - self.start[:3]
+        p = self.start[:3] + s * d
+        v = ds * r * d
+        a = dds * r * r * d
+        if tau < 1.0 - lower:
+            sz, dsz, ddsz = _quintic(tau / lift)
+            p[2], v[2], a[2] = (z0 + sz * (zc - z0), dsz / lift * r * (zc - z0),
+                                ddsz / lift ** 2 * r * r * (zc - z0))
+        else:
+            sz, dsz, ddsz = _quintic((tau - 1.0 + lower) / lower)
+            p[2], v[2], a[2] = (zc + sz * (z1 - zc), dsz / lower * r * (z1 - zc),
+                                ddsz / lower ** 2 * r * r * (z1 - zc))
+        dyaw = wrap(self.target[3] - self.start[3])
+        yaw = self.start[3] + s * dyaw
+        yawd = ds * r * dyaw
         late = (t - self.t0) - self.t_land
         if tau >= 1.0 and late > 0:
             p[2] = self.target[2] - min(self.descent_speed * late, self.max_descent)

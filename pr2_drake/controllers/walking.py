@@ -5,15 +5,29 @@ Input ports:
         Unconnected = stand still. NaN/inf or a wrong size raise ValueError naming the port;
         values beyond ``limits`` in controllers/walking.yaml are clipped to them.
     ``joint_state`` (54), ``body_state`` (13): the testbed's observations (pr2_drake.ports).
+    With ``arms="effort"`` only:
+    ``hand_targets`` (abstract, a list [left, right]): per hand None or a desired hand-sphere
+        centre p_WH (3) [m] in world. NaN/inf or a wrong shape raise ValueError naming the
+        port; targets beyond reach are clipped onto the workspace (within
+        ``arms.reach_max`` of the shoulder, ``arms.z_min`` above the soles).
+        Unconnected = no hand targets (posture).
+    ``pick_state`` (abstract :class:`pr2_drake.grasp.PickState`): while a hand is attached,
+        its contact force is a variable of the QP (bounded by ``qp.hand_force_max``), so the
+        balance plans for the reaction. Unconnected = nothing held.
 Output ports:
     ``legs_command``: :class:`pr2_drake.ports.JointGroupCommand`, mode "effort" [Nm].
-    ``status`` (6): see :data:`pr2_drake.controllers.walking_core.STATUS_FIELDS`
+    ``arms_command`` (``arms="effort"`` only): mode "effort" [Nm], from the same QP.
+    ``status`` (6): see :data:`pr2_drake.controllers.whole_body.STATUS_FIELDS`
         (qp_ok, consecutive QP failures, QP iterations, gait phase, stance side, falling).
+
+With ``arms="position"`` (default) the arms are held by another block in position mode
+(:class:`pr2_drake.controllers.posture.ArmPosture`) and the QP takes their torques as given.
 
 The control law runs every ``control_period`` seconds (a periodic discrete update) and the torques
 are held in between. The gait and planner memory live in the Python object
-(:class:`WalkingCore`), not in the Context: one controller drives one simulation at a time;
-a simulation that restarts at an earlier time resets it.
+(:class:`pr2_drake.controllers.whole_body.WholeBodyController`), not in the Context: one
+controller drives one simulation at a time; a simulation that restarts at an earlier time
+resets it.
 
 In process, without a Diagram (the PR2 platform's walking-server call)::
 
@@ -23,7 +37,7 @@ In process, without a Diagram (the PR2 platform's walking-server call)::
 ``command`` takes the time from ``obs["time"]`` and runs the control law once per
 ``control_period`` (holding the torques in between), so it can be called every env step.
 
-Both paths call the same :meth:`WalkingCore.update`.
+Both paths call the same :meth:`WholeBodyController.update`.
 """
 
 from __future__ import annotations
@@ -34,13 +48,16 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, LeafSystem
 
-from pr2_drake.controllers.walking_core import (
+from pr2_drake.controllers.footsteps import FlatTerrain, FootstepPlanner
+from pr2_drake.controllers.walking_params import WalkingParams
+from pr2_drake.controllers.whole_body import (
     COMMAND_PORT,
+    HAND_TARGETS_PORT,
     STATUS_FIELDS,
-    WalkingCore,
+    WholeBodyController,
     check_command,
 )
-from pr2_drake.controllers.walking_params import WalkingParams
+from pr2_drake.grasp import PickState
 from pr2_drake.lifetime import weak_calc
 from pr2_drake.ports import (
     BODY_STATE_SIZE,
@@ -104,25 +121,43 @@ class WalkingController(LeafSystem):
 
     Args:
         params: a WalkingParams, a path to a YAML file, or None for controllers/walking.yaml.
+        footsteps: footstep planner (None: from the velocity command).
+        terrain: terrain model of the footholds (None: flat ground).
+        arms: "position" (arms held by another block) or "effort" (the QP drives them).
     """
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
-    def __init__(self, params: WalkingParams | str | None = None):
+    def __init__(self, params: WalkingParams | str | None = None,
+                 footsteps: FootstepPlanner | None = None, terrain: FlatTerrain | None = None,
+                 arms: str = "position"):
         super().__init__()
         self.params = _load(params)
-        self.core = WalkingCore(self.params)
+        self.core = WholeBodyController(self.params, footsteps, terrain, arms)
         self._cmd_port = self.DeclareVectorInputPort(COMMAND_PORT, 3)
         self._js_port = self.DeclareVectorInputPort("joint_state", JOINT_STATE_SIZE)
         self._bs_port = self.DeclareVectorInputPort("body_state", BODY_STATE_SIZE)
+        self._arms = self.core.arms_driven
+        if self._arms:
+            self._hand_port = self.DeclareAbstractInputPort(HAND_TARGETS_PORT,
+                                                            AbstractValue.Make([None, None]))
+            self._pick_port = self.DeclareAbstractInputPort("pick_state",
+                                                            AbstractValue.Make(PickState()))
         n_status = len(STATUS_FIELDS)
-        self._state = self.DeclareDiscreteState(N_LEGS + n_status)
+        self._n_tau = N_LEGS + (N_ARMS if self._arms else 0)
+        self._state = self.DeclareDiscreteState(self._n_tau + n_status)
         self.DeclarePeriodicDiscreteUpdateEvent(self.params.control_period, 0.0, self._update)
         self.DeclareInitializationDiscreteUpdateEvent(self._update)
         self.DeclareAbstractOutputPort(
             "legs_command", lambda: AbstractValue.Make(JointGroupCommand.effort(np.zeros(N_LEGS))),
             weak_calc(self._calc_legs),
             prerequisites_of_calc={self.discrete_state_ticket(self._state)})
+        if self._arms:
+            self.DeclareAbstractOutputPort(
+                "arms_command",
+                lambda: AbstractValue.Make(JointGroupCommand.effort(np.zeros(N_ARMS))),
+                weak_calc(self._calc_arms),
+                prerequisites_of_calc={self.discrete_state_ticket(self._state)})
         self.DeclareVectorOutputPort(
             "status", n_status, weak_calc(self._calc_status),
             prerequisites_of_calc={self.discrete_state_ticket(self._state)})
@@ -139,9 +174,19 @@ class WalkingController(LeafSystem):
         cmd = check_command(cmd, COMMAND_PORT)
         joint_state = self._js_port.Eval(context)
         q, v = self.core.model.state_from_ports(joint_state, self._bs_port.Eval(context))
-        # The applied arm efforts (one step old) tell the QP what the arm controller does.
-        tau_arms = joint_state[EFFORT_ARMS] if context.get_time() > 0.0 else None
-        tau = self.core.update(context.get_time(), q, v, cmd, tau_arms)
+        if self._arms:
+            targets = self._hand_port.Eval(context) if self._hand_port.HasValue(context) else None
+            pick = self._pick_port.Eval(context) if self._pick_port.HasValue(context) else None
+            attached = (bool(pick and pick.attached and pick.hand == "left_hand"),
+                        bool(pick and pick.attached and pick.hand == "right_hand"))
+            # The applied arm efforts (one step old) give the held hand's force estimate.
+            applied = joint_state[EFFORT_ARMS] if context.get_time() > 0.0 else None
+            tau = self.core.update(context.get_time(), q, v, cmd, applied, targets, attached)
+            tau = np.concatenate([tau, self.core.tau_arms])
+        else:
+            # The applied arm efforts (one step old) tell the QP what the arm controller does.
+            tau_arms = joint_state[EFFORT_ARMS] if context.get_time() > 0.0 else None
+            tau = self.core.update(context.get_time(), q, v, cmd, tau_arms)
         discrete_state.get_mutable_vector(self._state).SetFromVector(
             np.concatenate([tau, self.core.info.vector()]))
 
@@ -149,8 +194,12 @@ class WalkingController(LeafSystem):
         tau = context.get_discrete_state(self._state).get_value()[:N_LEGS]
         output.set_value(JointGroupCommand.effort(tau.copy()))
 
+    def _calc_arms(self, context, output) -> None:
+        tau = context.get_discrete_state(self._state).get_value()[N_LEGS:self._n_tau]
+        output.set_value(JointGroupCommand.effort(tau.copy()))
+
     def _calc_status(self, context, output: BasicVector) -> None:
-        output.SetFromVector(context.get_discrete_state(self._state).get_value()[N_LEGS:])
+        output.SetFromVector(context.get_discrete_state(self._state).get_value()[self._n_tau:])
 
     # ---- in-process path ---------------------------------------------------------------------
     def command(self, obs: Mapping[str, Any], vx: float, vy: float, yaw_rate: float,

@@ -29,6 +29,15 @@ class GaitParams:
     max_step_yaw: float = 0.30
     swing_height: float = 0.06
     swing_land_fraction: float = 0.9  # the swing lands at this fraction of single support
+    # Over an edge (the terrain model's swing_clearance) the swing sole rises to the clearance
+    # height during this first fraction of the swing phase, moves, and lowers onto the target
+    # during this last fraction (lift, move, lower; the horizontal motion overlaps 40 %).
+    # The CoM height target is com_height above the mean foothold height, or, when this is
+    # set, above the stance sole in single support (stairs: the stance leg on the upper tread
+    # is not left crouched while the other sole swings up from the lower one).
+    com_height_over_stance: bool = False
+    swing_clear_lift: float = 0.3
+    swing_clear_lower: float = 0.3
     swing_lift_fraction: float = 0.0  # horizontal swing motion starts/ends this much of the
     # swing phase after lift-off / before landing (vertical lift and landing)
     touchdown_height: float = 0.004  # sole lower than this above the stance sole (above its
@@ -136,8 +145,23 @@ class QpParams:
     joint_limit_horizon: float = 0.08  # [s] braking horizon of the joint-limit rows
     polish: bool = True  # OSQP solution polishing (accurate active set)
     fail_decay: float = 0.9  # last torques scaled by this after each failed solve
+    hand_force_reg: float = 1000.0  # regularisation of a held hand's contact force (units
+    # of force_scale) towards its estimate: the QP leans on a held object only as needed
+    hand_force_max: float = 20.0  # [N] band about the estimate, per component (W)
     solver: str = "daqp"  # "daqp" (dense active set, exact, ~0.05 ms; OSQP as its fallback)
     # or "osqp" (the settings above from max_iter to polish apply to OSQP only)
+
+
+@dataclass
+class ArmParams:
+    """The arms when the whole-body QP drives them (``arms_command`` in effort mode)."""
+
+    posture: TaskGains = field(default_factory=lambda: TaskGains(100.0, 20.0, 0.1))
+    hand: TaskGains = field(default_factory=lambda: TaskGains(150.0, 25.0, 100.0))
+    # Hand targets farther than this from the shoulder are pulled back onto this sphere [m].
+    reach_max: float = 0.42
+    # ... and below this height above the ground under the robot (mean sole height) [m].
+    z_min: float = 0.25
 
 
 @dataclass
@@ -159,6 +183,7 @@ class WalkingParams:
     # Arms (position mode, posture block): stiffness [Nm/rad] and damping [Nm s/rad].
     arm_stiffness: float = 60.0
     arm_damping: float = 3.0
+    arms: ArmParams = field(default_factory=lambda: ArmParams())
 
     @staticmethod
     def load(path: str = "controllers/walking.yaml") -> "WalkingParams":

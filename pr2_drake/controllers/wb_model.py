@@ -37,6 +37,10 @@ class WholeBodyModel:
         self.world = self.plant.world_frame()
         self.base = self.plant.GetBodyByName(BASE_BODY, robot)
         self.soles = [self.plant.GetFrameByName(f"{s}_sole", robot) for s in SIDES]
+        self.hands = [self.plant.GetFrameByName(f"{s}_arm_sphere", robot) for s in SIDES]
+        # The arm's first joint frame (on its child body): the shoulder point of reach checks.
+        self.shoulders = [self.plant.GetJointByName(f"{s}_shoulder_y", robot).frame_on_child()
+                          for s in SIDES]
         self.v_legs = self.maps.v_joints[N_ARMS:]
         self.v_arms = self.maps.v_joints[:N_ARMS]
         self.q_legs = self.maps.q_joints[N_ARMS:]
@@ -52,6 +56,16 @@ class WholeBodyModel:
         self.n_points = self.p_SC.shape[1]
         self.foot_length = float(foot["length"])
         self._g_W = np.array(self.plant.gravity_field().gravity_vector())
+        self.gravity = float(-self._g_W[2])  # [m/s^2]
+        # Peak torques [Nm] and position limits [rad] of the joints (original order), from the
+        # plant's actuators and joints.
+        self.effort = np.empty(len(self.maps.v_joints))
+        for a in self.plant.GetJointActuatorIndices(robot):
+            act = self.plant.get_joint_actuator(a)
+            k = list(self.maps.v_joints).index(act.joint().velocity_start())
+            self.effort[k] = act.effort_limit()
+        self.q_lower = self.plant.GetPositionLowerLimits()[self.maps.q_joints]
+        self.q_upper = self.plant.GetPositionUpperLimits()[self.maps.q_joints]
         self.q = np.zeros(self.nq)
         self.v = np.zeros(self.nv)
         self.update(self.plant.GetPositions(self.context).copy(), self.v)
@@ -80,6 +94,10 @@ class WholeBodyModel:
         self._Cv = None
         self._h = None
         self._X_WS = [None, None]
+        self._com = None
+        self._sole = [None, None]
+        self._hand = [None, None]
+        self._R_WB = None
 
     # ---- terms (cached per update: treat the returned arrays as read-only) -------------------
     def mass_matrix(self) -> np.ndarray:
@@ -112,11 +130,13 @@ class WholeBodyModel:
         force balance, m a_Ccm = sum of external forces: so those rows of M are m J and those
         of C v are m Jdot v (exact; ~0.06 ms cheaper than Drake's CoM bias acceleration).
         """
-        p = self.plant.CalcCenterOfMassPositionInWorld(self.context)
-        rows = self.maps.v_base[3:]
-        J = self.mass_matrix()[rows] * (1.0 / self.mass)
-        jdv = self._bias_term()[rows] * (1.0 / self.mass)
-        return p, J @ self.v, J, jdv
+        if self._com is None:
+            p = self.plant.CalcCenterOfMassPositionInWorld(self.context)
+            rows = self.maps.v_base[3:]
+            J = self.mass_matrix()[rows] * (1.0 / self.mass)
+            jdv = self._bias_term()[rows] * (1.0 / self.mass)
+            self._com = (p, J @ self.v, J, jdv)
+        return self._com
 
     def sole_pose(self, side: int) -> RigidTransform:
         """X_WS of sole ``side`` (0 left, 1 right)."""
@@ -127,12 +147,30 @@ class WholeBodyModel:
 
     def sole_spatial(self, side: int):
         """X_WS, V_WS (6: [w; v] in W), J (6 x nv) and Jdot v (6) of a sole frame."""
-        ctx, W, S = self.context, self.world, self.soles[side]
-        J = self.plant.CalcJacobianSpatialVelocity(
-            ctx, JacobianWrtVariable.kV, S, np.zeros(3), W, W)
-        jdv = self.plant.CalcBiasSpatialAcceleration(
-            ctx, JacobianWrtVariable.kV, S, np.zeros(3), W, W).get_coeffs()
-        return self.sole_pose(side), J @ self.v, J, jdv
+        if self._sole[side] is None:
+            ctx, W, S = self.context, self.world, self.soles[side]
+            J = self.plant.CalcJacobianSpatialVelocity(
+                ctx, JacobianWrtVariable.kV, S, np.zeros(3), W, W)
+            jdv = self.plant.CalcBiasSpatialAcceleration(
+                ctx, JacobianWrtVariable.kV, S, np.zeros(3), W, W).get_coeffs()
+            self._sole[side] = (self.sole_pose(side), J @ self.v, J, jdv)
+        return self._sole[side]
+
+    def shoulder_position(self, side: int) -> np.ndarray:
+        """p_WS of the shoulder (first arm joint) of one side [m]."""
+        return self.shoulders[side].CalcPoseInWorld(self.context).translation()
+
+    def hand_point(self, side: int):
+        """p_WH, v_WH (3, W), J (3 x nv) and Jdot v (3) of a hand sphere centre H."""
+        if self._hand[side] is None:
+            ctx, W, H = self.context, self.world, self.hands[side]
+            J = self.plant.CalcJacobianTranslationalVelocity(
+                ctx, JacobianWrtVariable.kV, H, np.zeros(3), W, W)
+            jdv = self.plant.CalcBiasTranslationalAcceleration(
+                ctx, JacobianWrtVariable.kV, H, np.zeros(3), W, W).reshape(-1)
+            p = H.CalcPoseInWorld(ctx).translation()
+            self._hand[side] = (p, J @ self.v, J, jdv)
+        return self._hand[side]
 
     def contact_points(self, side: int):
         """J (3n x nv) and Jdot v (3n) of the contact points of one sole, stacked per point."""
@@ -152,11 +190,14 @@ class WholeBodyModel:
         return self.base.EvalPoseInWorld(self.context)
 
     def base_rotation(self) -> np.ndarray:
-        """R_WB (3x3) from the base quaternion in q (no kinematics evaluation)."""
+        """R_WB (3x3) from the base quaternion in q (no kinematics evaluation; cached)."""
+        if self._R_WB is not None:
+            return self._R_WB
         w, x, y, z = self.q[self.maps.q_base[:4]].tolist()
         n = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
         w, x, y, z = w * n, x * n, y * n, z * n
-        return np.array([
+        self._R_WB = np.array([
             [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
             [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
             [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+        return self._R_WB

@@ -5,8 +5,12 @@ Constraints (rows of one preallocated sparse matrix, coefficients updated every 
 
 - floating-base rows of M vdot + h = J_c^T f (the base is not actuated);
 - leg torques tau = M_l vdot + h_l - J_{c,l}^T f within +- the peak torque;
-- arm rows: the arms are position-controlled elsewhere, so their torques are known (the
-  spring-damper of the posture command) and enter as equalities;
+- arm rows: either the arms are position-controlled elsewhere, so their torques are known (the
+  spring-damper of the posture command) and enter as equalities, or (``arm_effort`` given) the
+  QP drives them too and their torques are bounded by their peak torques like the legs';
+- hand contact forces (``n_hands`` > 0): 3 more variables per hand (W, scaled like the foot
+  forces) that enter the dynamics through the hand point's Jacobian, each within box bounds
+  (zero while the hand holds nothing), with a regularisation towards a prior force;
 - per contact point: friction pyramid |f_x|, |f_y| <= mu f_z and f_min <= f_z <= f_max
   (f_max = 0 for points not in contact);
 - kinematic rows J_k vdot = a_k (e.g. stance soles do not accelerate), each row switched off
@@ -54,6 +58,8 @@ class QpResult:
     forces: np.ndarray  # contact forces [N], (n_points, 3) in W
     status: str
     iterations: int
+    tau_arms: np.ndarray | None = None  # arm torques [Nm] (arms driven by the QP), else None
+    hand_forces: np.ndarray | None = None  # (n_hands, 3) [N] in W, forces on the hands
 
 
 def _csc_pattern(mask: np.ndarray):
@@ -73,15 +79,25 @@ class WholeBodyQp:
         effort: peak torque per leg joint [Nm].
         n_points: number of contact points (all feet).
         params: QP settings.
+        arm_v: indices of the arm joint velocities.
+        n_kin: number of kinematic rows (J_kin vdot = a_kin, switchable).
+        box_v: velocity indices with acceleration bounds (joint limits).
+        arm_effort: peak torque per arm joint [Nm]: the QP drives the arms (else their torques
+            are given to :meth:`solve`).
+        n_hands: hand contact points whose forces are variables (0: none).
     """
 
     def __init__(self, nv: int, base_v: np.ndarray, leg_v: np.ndarray, effort: np.ndarray,
                  n_points: int, params: QpParams, arm_v: np.ndarray | None = None,
-                 n_kin: int = 0, box_v: np.ndarray | None = None):
+                 n_kin: int = 0, box_v: np.ndarray | None = None,
+                 arm_effort: np.ndarray | None = None, n_hands: int = 0):
         self.p = params
         self.nv = nv
-        self.nf = 3 * n_points
+        self.nf_feet = 3 * n_points
+        self.n_hands = n_hands
+        self.nf = 3 * n_points + 3 * n_hands
         self.n = nv + self.nf
+        self.arm_effort = None if arm_effort is None else np.asarray(arm_effort, dtype=float)
         self.base_v = np.asarray(base_v)
         self.leg_v = np.asarray(leg_v)
         self.arm_v = np.zeros(0, dtype=int) if arm_v is None else np.asarray(arm_v)
@@ -91,7 +107,7 @@ class WholeBodyQp:
         self.n_dyn = n_dyn
         self.n_kin = n_kin
         self.box_v = np.zeros(0, dtype=int) if box_v is None else np.asarray(box_v)
-        self.m = n_dyn + 5 * n_points + n_kin + len(self.box_v)
+        self.m = n_dyn + 5 * n_points + n_kin + len(self.box_v) + 3 * n_hands
         s = params.force_scale
         self.scale = s
 
@@ -110,9 +126,14 @@ class WholeBodyQp:
         a_mask[:n_dyn, :] = True
         self.kin_rows = np.arange(n_dyn + 5 * n_points, n_dyn + 5 * n_points + n_kin)
         a_mask[self.kin_rows, :nv] = True
-        self.box_rows = np.arange(self.m - len(self.box_v), self.m)
+        nh = 3 * n_hands
+        self.box_rows = np.arange(self.m - nh - len(self.box_v), self.m - nh)
         self.A[self.box_rows, self.box_v] = 1.0
         a_mask[self.box_rows, self.box_v] = True
+        self.hand_rows = np.arange(self.m - nh, self.m)
+        self.hand_cols = np.arange(nv + self.nf_feet, self.n)
+        self.A[self.hand_rows, self.hand_cols] = 1.0
+        a_mask[self.hand_rows, self.hand_cols] = True
         self._a_rows, self._a_cols, a_indptr = _csc_pattern(a_mask)
 
         p_mask = np.zeros((self.n, self.n), dtype=bool)
@@ -123,6 +144,8 @@ class WholeBodyQp:
         self.P = np.zeros((self.n, self.n))
         # Force regularisation (forces in units of force_scale): spreads the load evenly.
         self.P[np.arange(nv, self.n), np.arange(nv, self.n)] = params.force_reg
+        hand = np.arange(nv + self.nf_feet, self.n)
+        self.P[hand, hand] = params.hand_force_reg
         self.l = np.full(self.m, -np.inf)
         self.u = np.full(self.m, np.inf)
         self.l[:n_dyn] = -1.0
@@ -148,7 +171,9 @@ class WholeBodyQp:
         self._nl = len(self.base_v) + len(self.leg_v)
         self._fz_rows = n_dyn + 5 * np.arange(n_points) + 4
         self._kin_slice = slice(n_dyn + 5 * n_points, n_dyn + 5 * n_points + n_kin)
-        self._box_slice = slice(self.m - len(self.box_v), self.m)
+        self._box_slice = slice(self.m - nh - len(self.box_v), self.m - nh)
+        self._hand_slice = slice(self.m - nh, self.m)
+        self.last_tau_arms = np.zeros(len(self.arm_v))
         self._P_vdiag = self.P.reshape(-1)[:nv * self.n:self.n + 1]  # view: diag of the vdot block
         assert np.shares_memory(self._P_vdiag, self.P)
 
@@ -178,7 +203,10 @@ class WholeBodyQp:
               tau_arms: np.ndarray | None = None,
               fz_min: np.ndarray | None = None, J_kin: np.ndarray | None = None,
               a_kin: np.ndarray | None = None,
-              box: tuple[np.ndarray, np.ndarray] | None = None) -> QpResult:
+              box: tuple[np.ndarray, np.ndarray] | None = None,
+              J_hands: np.ndarray | None = None,
+              hand_bounds: tuple[np.ndarray, np.ndarray] | None = None,
+              hand_prior: np.ndarray | None = None) -> QpResult:
         """Solve one tick.
 
         Args:
@@ -192,6 +220,10 @@ class WholeBodyQp:
             J_kin, a_kin: (n_kin x nv) and (n_kin,) kinematic rows J_kin vdot = a_kin; rows
                 with a NaN in a_kin are inactive.
             box: (lower, upper) bounds on vdot[box_v] (e.g. from joint limits).
+            J_hands: (3 n_hands x nv) translational Jacobians of the hand points, in W.
+            hand_bounds: (lower, upper) (3 n_hands,) bounds on the hand forces [N, W]; zero
+                for a hand that holds nothing (default: all zero).
+            hand_prior: (3 n_hands,) force [N] the regularisation pulls the hand forces to.
         """
         p, nv, s, nd = self.p, self.nv, self.scale, self.n_dyn
         A = self.A
@@ -202,16 +234,31 @@ class WholeBodyQp:
         # Dynamics rows [base; legs; arms] of [M, -Jc^T] in one gather each.
         dyn = self._dyn_v
         A[:nd, :nv] = M[dyn]
-        A[:nd, nv:] = -JcT[dyn]
+        A[:nd, nv:nv + self.nf_feet] = -JcT[dyn]
+        l, u = self.l, self.u
+        if self.n_hands:
+            hc = slice(nv + self.nf_feet, self.n)
+            hr = self._hand_slice
+            if J_hands is None or hand_bounds is None:
+                A[:nd, hc] = 0.0
+                l[hr] = 0.0
+                u[hr] = 0.0
+            else:
+                A[:nd, hc] = J_hands.T[dyn] * (-s)
+                l[hr] = hand_bounds[0] / s
+                u[hr] = hand_bounds[1] / s
+            prior = np.zeros(3 * self.n_hands) if hand_prior is None else hand_prior
+            self.q[hc] = -(self.p.hand_force_reg / s) * prior
         nb, nl = len(self.base_v), self._nl
         hd = h[dyn]
-        hl = hd[nb:nl]
-        l, u = self.l, self.u
         np.negative(hd, out=l[:nd])
         u[:nd] = l[:nd]
         l[nb:nl] -= self.effort
         u[nb:nl] += self.effort
-        if nd > nl and tau_arms is not None:
+        if self.arm_effort is not None:
+            l[nl:nd] -= self.arm_effort
+            u[nl:nd] += self.arm_effort
+        elif nd > nl and tau_arms is not None:
             l[nl:nd] += tau_arms
             u[nl:nd] += tau_arms
         zr = self._fz_rows
@@ -255,7 +302,7 @@ class WholeBodyQp:
             # 2-10 active-set iterations; the cap bounds a pathological tick.
             x, _, exitflag, info = daqp.solve(P, self.q, A, u, l, sense, iter_limit=1000)
             if exitflag in _DAQP_OK and np.isfinite(x.sum()):
-                return self._result(x, hl, in_contact, "daqp", int(info["iterations"]))
+                return self._result(x, hd, in_contact, "daqp", int(info["iterations"]))
             # No solution from the active-set method: let OSQP try (approximate, capped).
         ext = self._ext
         Px = P[self._p_rows, self._p_cols]
@@ -265,7 +312,7 @@ class WholeBodyQp:
             ext.update_data_mat(P_x=Px, P_i=None, A_x=Ax, A_i=None)
             if self._first:
                 f0 = np.zeros(self.nf)
-                f0[2::3] = np.where(in_contact,
+                f0[2:self.nf_feet:3] = np.where(in_contact,
                                     h[self.base_v][5] / max(1, in_contact.sum()) / s, 0.0)
                 ext.warm_start(np.concatenate([np.zeros(nv), f0]), None)
                 self._first = False
@@ -280,28 +327,43 @@ class WholeBodyQp:
             self._setup()
             return self._fallback(f"solver error: {err}", 0)
         if ok and x is not None and np.all(np.isfinite(x)):
-            return self._result(x, hl, in_contact, status, iterations)
+            return self._result(x, hd, in_contact, status, iterations)
         return self._fallback(status, iterations)
 
-    def _result(self, x: np.ndarray, hl: np.ndarray, in_contact: np.ndarray, status: str,
+    def _result(self, x: np.ndarray, hd: np.ndarray, in_contact: np.ndarray, status: str,
                 iterations: int) -> QpResult:
         """Leg torques tau = M_l vdot + h_l - J_{c,l}^T f of a solution x (clamped), from the
-        leg rows of A (= [M_l, -J_{c,l}^T], with the columns of points not in contact zero)."""
+        leg rows of A (= [M_l, -J_{c,l}^T], with the columns of points not in contact zero);
+        the arm torques likewise when the QP drives the arms."""
         nv = self.nv
-        nb = len(self.base_v)
-        tau = self.A[nb:self._nl] @ x + hl
+        nb, nl = len(self.base_v), self._nl
+        tau = self.A[nb:nl] @ x + hd[nb:nl]
         np.minimum(tau, self.effort, out=tau)
         np.maximum(tau, -self.effort, out=tau)
+        tau_arms = None
+        if self.arm_effort is not None:
+            tau_arms = self.A[nl:self.n_dyn] @ x + hd[nl:]
+            np.minimum(tau_arms, self.arm_effort, out=tau_arms)
+            np.maximum(tau_arms, -self.arm_effort, out=tau_arms)
+            self.last_tau_arms = tau_arms
         vdot = x[:nv]
-        f = x[nv:] * np.repeat(in_contact, 3)
+        nff = self.nf_feet
+        f = x[nv:nv + nff] * np.repeat(in_contact, 3)
+        hand = x[nv + nff:] * self.scale if self.n_hands else None
         self.last_tau = tau
         self.failures = 0
-        return QpResult(True, tau, vdot, (f * self.scale).reshape(-1, 3), status, iterations)
+        return QpResult(True, tau, vdot, (f * self.scale).reshape(-1, 3), status, iterations,
+                        tau_arms, None if hand is None else hand.reshape(-1, 3))
 
     def _fallback(self, status: str, iterations: int) -> QpResult:
         """The last torques, decayed: a failed tick never raises."""
         self.failures += 1
         self.last_tau = self.last_tau * self.p.fail_decay
+        tau_arms = None
+        if self.arm_effort is not None:
+            self.last_tau_arms = self.last_tau_arms * self.p.fail_decay
+            tau_arms = self.last_tau_arms.copy()
         self._first = True
         return QpResult(False, self.last_tau.copy(), np.zeros(self.nv),
-                        np.zeros((self.n_points, 3)), status, iterations)
+                        np.zeros((self.n_points, 3)), status, iterations, tau_arms,
+                        np.zeros((self.n_hands, 3)) if self.n_hands else None)

@@ -21,7 +21,9 @@ going up to a raised floor, floor length, post and button size and height, toler
 our choices and live in the YAML.
 
 Priors: ``button_center`` [x, y, z] (world, m; centre of the button's front face),
-``step_height``, ``step_depth``, ``step_width`` (m) and ``step_count``.
+``step_height``, ``step_depth``, ``step_width`` (m), ``step_count`` and ``step_start_x`` (m,
+where the first riser stands; the steps rise along +x, centred on y = 0). The robot has no
+camera in this task, so the staircase's position is a prior, like its dimensions.
 """
 
 from __future__ import annotations
@@ -151,6 +153,7 @@ class Task(TaskDefinition):
                 "step_depth": float(st["depth"]),
                 "step_width": float(st["width"]),
                 "step_count": int(st["count"]),
+                "step_start_x": float(st["start_x"]),
             },
             data={"stairs": stairs},
         )

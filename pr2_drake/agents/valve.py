@@ -1,0 +1,375 @@
+"""Task 2 reference agent: walk to the valve, take the rim with a hand and turn it.
+
+:class:`ValveAgent` is a Diagram of a sequencer (:class:`ValveSequencer`) and the walking
+controller with the arms in the whole-body QP (``WalkingController(arms="effort")``):
+
+1. WALK: towards a standing point ``stand_distance`` from the valve axis, on the line from the
+   robot to the ``valve_center`` prior (goal-velocity steering, :func:`goal_velocity`);
+2. APPROACH: small steps (proportional velocity command) onto that point, facing the axis;
+   then wait until the gait is standing;
+3. REACH: the left hand rises beside the wheel, then moves over the rim, ``grasp_height`` above
+   the wheel centre at angle ``angle_start`` about the axis (in the approach frame A: x from the
+   robot to the axis, 180 deg = the rim point nearest the robot);
+4. PICK: sends ``pick`` = "left_hand" until ``pick_state`` reports it attached (the hand
+   centre is inside the enlarged valve volume);
+5. TURN: the hand target moves along the circle about the valve axis through the picked
+   point, to ``angle_end``; the attachment turns the wheel with it, and the QP carries the hand's
+   contact force (pick_state input of the controller);
+6. RELEASE once the hand has travelled ``release_angle`` about the axis; the hand goes back up
+   and out, then to the arm posture; the robot stays standing.
+
+Only the public observation (``body_state``, ``joint_state``, ``pick_state``) and the task's
+priors (``valve_center``, ``valve_dimensions``) are used. Angles in rad unless named _deg;
+positions in m, world frame W. Parameters: controllers/valve_agent.yaml.
+
+(No ``from __future__ import annotations``: ``yaml_load_typed`` reads the field types.)
+"""
+
+import enum
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.common.yaml import yaml_load_typed
+from pydrake.systems.framework import BasicVector, Diagram, DiagramBuilder, LeafSystem
+
+from pr2_drake.agents.walk_to_goal import GoalPlannerParams, goal_velocity, yaw_from_quaternion
+from pr2_drake.grasp import PickState
+from pr2_drake.lifetime import weak_calc
+from pr2_drake.paths import resolve_user_path
+from pr2_drake.ports import BODY_STATE_SIZE, JOINT_STATE_SIZE, P_WB, QUAT_WB
+
+
+@dataclass
+class ValveAgentParams:
+    """See controllers/valve_agent.yaml (m, s, deg where named)."""
+
+    period: float = 0.02  # [s] sequencer update period
+    stand_distance: float = 0.45  # base to valve axis, horizontal
+    approach_radius: float = 0.30  # switch from WALK to APPROACH this close to the point
+    position_tolerance: float = 0.03
+    yaw_tolerance_deg: float = 4.0
+    approach_gain: float = 1.0  # [1/s] velocity per m of position error
+    approach_yaw_gain: float = 1.5  # [1/s]
+    approach_speed: float = 0.12  # [m/s] cap of the approach steps
+    settle_time: float = 1.0  # [s] standing still before reaching
+    grasp_height: float = 0.13  # hand centre above the wheel centre
+    grasp_radius: float = 0.24  # hand centre from the axis
+    lift_clearance: float = 0.03  # the hand rises outside the rim's radius by this much
+    angle_start_deg: float = 195.0  # in the approach frame A (180 = nearest rim point)
+    angle_end_deg: float = 110.0
+    reach_time: float = 1.5  # [s] per reach segment
+    turn_speed_deg: float = 20.0  # [deg/s] hand target speed about the axis
+    release_angle_deg: float = 70.0  # hand travel about the axis before release
+    pick_timeout: float = 1.5  # [s] without attachment: retry closer to the axis
+    hold_time: float = 0.5  # [s] at the end points before the next phase
+
+    @staticmethod
+    def load(path: str = "controllers/valve_agent.yaml") -> "ValveAgentParams":
+        return yaml_load_typed(schema=ValveAgentParams,
+                               filename=str(resolve_user_path(path, "valve agent parameters")))
+
+
+class Stage(enum.IntEnum):
+    WALK = 0
+    APPROACH = 1
+    SETTLE = 2
+    REACH = 3
+    PICK = 4
+    TURN = 5
+    RELEASE = 6
+    RETRACT = 7
+    DONE = 8
+
+
+def _smooth(s: float) -> float:
+    s = min(max(s, 0.0), 1.0)
+    return s * s * (3.0 - 2.0 * s)
+
+
+class ValveSequencer(LeafSystem):
+    """Stages of the valve turn (see the module docstring).
+
+    Inputs: ``body_state``, ``joint_state``, ``pick_state``, ``walker_status`` (the walking
+    controller's status). Outputs: ``velocity_command`` (3), ``hand_targets`` ([left, right]),
+    ``pick`` (str), ``release`` (bool), ``stage`` (1).
+    """
+
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
+    HAND = 0  # left
+
+    def __init__(self, center, rim_radius: float, params: ValveAgentParams | None = None,
+                 goal_params: GoalPlannerParams | None = None):
+        super().__init__()
+        from pr2_drake.controllers.wb_model import WholeBodyModel
+
+        self.center = np.asarray(center, dtype=float).reshape(-1)
+        if self.center.shape != (3,) or not np.all(np.isfinite(self.center)):
+            raise ValueError(f"ValveSequencer: valve_center must be 3 finite values, got {center}")
+        self.rim_radius = float(rim_radius)  # outer radius of the wheel [m]
+        self.p = params or ValveAgentParams()
+        self.goal_params = goal_params or GoalPlannerParams()
+        self.model = WholeBodyModel()  # forward kinematics of the observed state
+        self._bs = self.DeclareVectorInputPort("body_state", BODY_STATE_SIZE)
+        self._js = self.DeclareVectorInputPort("joint_state", JOINT_STATE_SIZE)
+        self._pick_state = self.DeclareAbstractInputPort("pick_state",
+                                                         AbstractValue.Make(PickState()))
+        self._status = self.DeclareVectorInputPort("walker_status", 6)
+        # The sequencer's memory is in this object; the outputs change only at its updates
+        # (which write the stage into this discrete state), not with the inputs.
+        self._stage_state = self.DeclareDiscreteState(1)
+        after_update = {self.all_state_ticket()}
+        self.DeclareVectorOutputPort("velocity_command", 3, weak_calc(self._calc_cmd),
+                                     prerequisites_of_calc=after_update)
+        self.DeclareAbstractOutputPort("hand_targets", lambda: AbstractValue.Make([None, None]),
+                                       weak_calc(self._calc_targets),
+                                       prerequisites_of_calc=after_update)
+        self.DeclareAbstractOutputPort("pick", lambda: AbstractValue.Make(""),
+                                       weak_calc(self._calc_pick),
+                                       prerequisites_of_calc=after_update)
+        self.DeclareAbstractOutputPort("release", lambda: AbstractValue.Make(False),
+                                       weak_calc(self._calc_release),
+                                       prerequisites_of_calc=after_update)
+        self.DeclareVectorOutputPort("stage", 1, weak_calc(self._calc_stage),
+                                     prerequisites_of_calc=after_update)
+        self.DeclarePeriodicUnrestrictedUpdateEvent(self.p.period, 0.0, self._update)
+        self.reset()
+
+    def reset(self) -> None:
+        self.stage = Stage.WALK
+        self.t_stage = 0.0
+        self.cmd = np.zeros(3)
+        self.targets: list = [None, None]
+        self.pick = ""
+        self.release = False
+        self.stand: np.ndarray | None = None  # standing point (x, y) and yaw
+        self.yaw_A = 0.0
+        self.path: list = []  # REACH waypoints
+        self.path_start = None
+        self.phi_pick = 0.0
+        self.r_pick = self.p.grasp_radius
+        self.z_pick = 0.0
+        self.phi_now = 0.0
+        self.pick_tries = 0
+        self.t_last = -1.0
+
+    # ---- helpers -----------------------------------------------------------------------------
+    def _go(self, stage: Stage, t: float) -> None:
+        self.stage = stage
+        self.t_stage = t
+
+    def _rim_point(self, phi_A: float, r: float, dz: float) -> np.ndarray:
+        """Point at angle phi_A (approach frame) and radius r about the axis, dz above c."""
+        a = self.yaw_A + phi_A
+        return self.center + np.array([r * math.cos(a), r * math.sin(a), dz])
+
+    def _hand_angle(self, p_WH: np.ndarray) -> float:
+        """Angle of the hand about the valve axis in the approach frame [rad], within pi of
+        ``angle_start_deg``."""
+        d = p_WH - self.center
+        ref = math.radians(self.p.angle_start_deg)
+        a = math.atan2(d[1], d[0]) - self.yaw_A - ref
+        return ref + math.atan2(math.sin(a), math.cos(a))
+
+    # ---- the sequencer -----------------------------------------------------------------------
+    def _update(self, context, state) -> None:
+        t = context.get_time()
+        if t < self.t_last - 1e-9:
+            self.reset()
+        self.t_last = t
+        p = self.p
+        bs = self._bs.Eval(context)
+        js = self._js.Eval(context)
+        q, v = self.model.state_from_ports(js, bs)
+        self.model.update(q, v)
+        p_WB = bs[P_WB]
+        yaw = yaw_from_quaternion(bs[QUAT_WB])
+        pick = self._pick_state.Eval(context)
+        status = self._status.Eval(context)
+        standing = int(status[3]) == 0
+        elapsed = t - self.t_stage
+        self.pick = ""
+        self.release = False
+        c = self.center
+        if self.stand is None:
+            d = c[:2] - p_WB[:2]
+            self.yaw_A = math.atan2(d[1], d[0])
+            xy = c[:2] - p.stand_distance * np.array([math.cos(self.yaw_A),
+                                                      math.sin(self.yaw_A)])
+            self.stand = np.array([xy[0], xy[1], self.yaw_A])
+        if self.stage == Stage.WALK:
+            err = self.stand[:2] - p_WB[:2]
+            if float(np.hypot(*err)) < p.approach_radius:
+                self._go(Stage.APPROACH, t)
+            else:
+                self.cmd = goal_velocity(p_WB, yaw, self.stand[:2], self.goal_params)
+        if self.stage == Stage.APPROACH:
+            err_W = self.stand[:2] - p_WB[:2]
+            e_yaw = math.atan2(math.sin(self.stand[2] - yaw), math.cos(self.stand[2] - yaw))
+            cy, sy = math.cos(yaw), math.sin(yaw)
+            ex, ey = cy * err_W[0] + sy * err_W[1], -sy * err_W[0] + cy * err_W[1]
+            if (float(np.hypot(ex, ey)) < p.position_tolerance
+                    and abs(e_yaw) < math.radians(p.yaw_tolerance_deg)):
+                self.cmd = np.zeros(3)
+                self._go(Stage.SETTLE, t)
+            else:
+                s = p.approach_speed
+                self.cmd = np.array([min(max(p.approach_gain * ex, -s), s),
+                                     min(max(p.approach_gain * ey, -s), s),
+                                     min(max(p.approach_yaw_gain * e_yaw, -0.4), 0.4)])
+        if self.stage == Stage.SETTLE:
+            self.cmd = np.zeros(3)
+            if not standing:
+                self.t_stage = t
+            elif elapsed >= p.settle_time:
+                self._start_reach(t)
+        if self.stage == Stage.REACH:
+            if self._follow_path(t):
+                self._go(Stage.PICK, t)
+        if self.stage == Stage.PICK:
+            if pick.attached:
+                p_WH = self.model.hand_point(self.HAND)[0]
+                d = p_WH - c
+                self.r_pick = float(np.hypot(d[0], d[1]))
+                self.z_pick = float(d[2])
+                self.phi_pick = self._hand_angle(p_WH)
+                self.phi_now = self.phi_pick
+                self._go(Stage.TURN, t)
+            elif elapsed > p.pick_timeout:
+                # Not in the volume: aim closer to the axis and lower, and try again.
+                self.pick_tries += 1
+                r = max(p.grasp_radius - 0.03 * self.pick_tries, 0.12)
+                self.targets[self.HAND] = self._rim_point(
+                    math.radians(p.angle_start_deg), r, p.grasp_height - 0.01 * self.pick_tries)
+                self.t_stage = t
+            else:
+                self.pick = "left_hand"
+        if self.stage == Stage.TURN:
+            if not pick.attached:
+                self._go(Stage.PICK, t)  # lost the wheel: pick again where the hand is
+            else:
+                end = math.radians(p.angle_end_deg)
+                step = math.radians(p.turn_speed_deg) * p.period
+                direction = 1.0 if end > self.phi_pick else -1.0
+                self.phi_now += direction * step
+                if direction * (self.phi_now - end) > 0:
+                    self.phi_now = end
+                self.targets[self.HAND] = self._rim_point(self.phi_now, self.r_pick, self.z_pick)
+                travelled = abs(self._hand_angle(self.model.hand_point(self.HAND)[0])
+                                - self.phi_pick)
+                if travelled >= math.radians(p.release_angle_deg) or (
+                        self.phi_now == end and elapsed > 30.0):
+                    self._go(Stage.RELEASE, t)
+        if self.stage == Stage.RELEASE:
+            self.release = True
+            if not pick.attached and elapsed > p.hold_time:
+                p_WH = self.model.hand_point(self.HAND)[0]
+                up = p_WH + np.array([0.0, 0.0, 0.05])
+                out = self._rim_point(self._hand_angle(p_WH), self.r_pick + 0.12, self.z_pick
+                                      + 0.05)
+                self._set_path([up, out], t)
+                self._go(Stage.RETRACT, t)
+        if self.stage == Stage.RETRACT:
+            if self._follow_path(t):
+                self.targets[self.HAND] = None
+                self._go(Stage.DONE, t)
+        if self.stage == Stage.DONE:
+            self.cmd = np.zeros(3)
+        state.get_mutable_discrete_state().get_mutable_vector(0).SetAtIndex(0, float(self.stage))
+
+    def _start_reach(self, t: float) -> None:
+        p = self.p
+        p_WH = self.model.hand_point(self.HAND)[0]
+        rim_out = self.rim_radius + p.lift_clearance
+        # Rise beside the wheel (outside its rim), then move over the grasp point.
+        d = p_WH - self.center
+        r_now = float(np.hypot(d[0], d[1]))
+        rise_xy = p_WH[:2] if r_now > rim_out else (
+            self.center[:2] + d[:2] * (rim_out / max(r_now, 1e-6)))
+        rise = np.array([rise_xy[0], rise_xy[1], self.center[2] + p.grasp_height])
+        grasp = self._rim_point(math.radians(p.angle_start_deg), p.grasp_radius, p.grasp_height)
+        self._set_path([rise, grasp], t)
+        self._go(Stage.REACH, t)
+
+    def _set_path(self, points: list, t: float) -> None:
+        start = self.model.hand_point(self.HAND)[0].copy()
+        self.path = [start] + [np.asarray(x, dtype=float) for x in points]
+        self.path_t0 = t
+
+    def _follow_path(self, t: float) -> bool:
+        """Move the hand target along the waypoints (``reach_time`` each, smooth); True when
+        the last has been held for ``hold_time``."""
+        T = self.p.reach_time
+        k = (t - self.path_t0) / T
+        seg = min(int(k), len(self.path) - 2)
+        s = _smooth(k - seg)
+        a, b = self.path[seg], self.path[seg + 1]
+        self.targets[self.HAND] = a + (b - a) * s
+        return k >= len(self.path) - 1 + self.p.hold_time / T
+
+    # ---- outputs -----------------------------------------------------------------------------
+    def _calc_cmd(self, context, output: BasicVector) -> None:
+        output.SetFromVector(self.cmd)
+
+    def _calc_targets(self, context, output) -> None:
+        output.set_value([None if x is None else np.array(x) for x in self.targets])
+
+    def _calc_pick(self, context, output) -> None:
+        output.set_value(self.pick)
+
+    def _calc_release(self, context, output) -> None:
+        output.set_value(bool(self.release))
+
+    def _calc_stage(self, context, output: BasicVector) -> None:
+        output.SetFromVector([float(self.stage)])
+
+
+class ValveAgent(Diagram):
+    """Task 2 reference agent (see the module docstring).
+
+    Input ports: ``joint_state``, ``body_state``, ``pick_state``. Output ports:
+    ``legs_command``, ``arms_command`` (effort, from the whole-body QP), ``pick``,
+    ``release``, ``velocity_command`` and ``stage`` (for plots).
+
+    Args:
+        priors: the task's priors; needs ``valve_center`` (x, y, z) in world [m].
+        params: sequencer YAML (default controllers/valve_agent.yaml).
+    """
+
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
+    def __init__(self, priors: dict[str, Any], params: str | None = None):
+        super().__init__()
+        from pr2_drake.controllers.walking import WalkingController
+
+        center = priors.get("valve_center")
+        if center is None:
+            raise ValueError(f"ValveAgent needs a 'valve_center' prior; got {sorted(priors)}")
+        seq_params = ValveAgentParams.load(params or "controllers/valve_agent.yaml")
+        goal_params = GoalPlannerParams.load("controllers/goal_planner.yaml")
+        builder = DiagramBuilder()
+        dims = priors.get("valve_dimensions") or {}
+        rim_radius = 0.5 * float(dims.get("diameter", 0.54))
+        seq = builder.AddNamedSystem("sequencer", ValveSequencer(center, rim_radius, seq_params,
+                                                                 goal_params))
+        walker = builder.AddNamedSystem("walker", WalkingController(arms="effort"))
+        js = builder.ExportInput(walker.GetInputPort("joint_state"), "joint_state")
+        bs = builder.ExportInput(walker.GetInputPort("body_state"), "body_state")
+        ps = builder.ExportInput(walker.GetInputPort("pick_state"), "pick_state")
+        builder.ConnectInput(js, seq.GetInputPort("joint_state"))
+        builder.ConnectInput(bs, seq.GetInputPort("body_state"))
+        builder.ConnectInput(ps, seq.GetInputPort("pick_state"))
+        builder.Connect(walker.GetOutputPort("status"), seq.GetInputPort("walker_status"))
+        builder.Connect(seq.GetOutputPort("velocity_command"),
+                        walker.GetInputPort("velocity_command"))
+        builder.Connect(seq.GetOutputPort("hand_targets"), walker.GetInputPort("hand_targets"))
+        builder.ExportOutput(walker.GetOutputPort("legs_command"), "legs_command")
+        builder.ExportOutput(walker.GetOutputPort("arms_command"), "arms_command")
+        builder.ExportOutput(seq.GetOutputPort("pick"), "pick")
+        builder.ExportOutput(seq.GetOutputPort("release"), "release")
+        builder.ExportOutput(seq.GetOutputPort("velocity_command"), "velocity_command")
+        builder.ExportOutput(seq.GetOutputPort("stage"), "stage")
+        builder.BuildInto(self)

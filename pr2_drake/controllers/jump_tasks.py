@@ -1,0 +1,117 @@
+"""A jump's plan and the two tracking tasks it adds to the whole-body QP.
+
+:class:`JumpPlan` is a :class:`pr2_drake.controllers.plan.WholeBodyPlan` with a 3-D CoM
+acceleration (from the launch MPC, or an impedance on landing) and a reference for each sole
+(flight: both soles swing). The other tasks (pelvis orientation, sole contacts, posture) read
+the fields they always read. Frames: W world (z up); units m, s.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pr2_drake.controllers.plan import SwingReference, WholeBodyPlan
+from pr2_drake.controllers.tasks import PelvisOrientationTask, SwingSoleTask, Task
+from pr2_drake.controllers.walking_params import TaskGains
+
+
+@dataclass
+class JumpPlan(WholeBodyPlan):
+    """A plan with a CoM acceleration in 3-D and per-sole references.
+
+    Attributes:
+        com_acc: desired CoM acceleration a_WCcm [m/s^2] (W), already a feedback law.
+        com_weight: QP weight of its x, y, z rows (0: no CoM task, e.g. in flight).
+        soles: per sole (0 left, 1 right) a reference, or None (in contact or free).
+        pelvis_scale: factor on the pelvis orientation weight (the launch lets the torso pitch
+            so that the angular momentum stays small: with both soles fixed the two conflict).
+        L_rate: desired rate of the centroidal angular momentum [N m] (W), already a feedback
+            law; L_weight: its QP weight (0: none, e.g. in flight, where it is conserved).
+    """
+
+    com_acc: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    com_weight: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    L_rate: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    L_weight: float = 0.0
+    pelvis_scale: float = 1.0  # times the pelvis orientation task's weight
+    soles: list[SwingReference | None] = field(default_factory=lambda: [None, None])
+
+
+class Com3dTask(Task):
+    """CoM acceleration rows J_com vdot = plan.com_acc - Jdot v, weighted by plan.com_weight."""
+
+    def add_to(self, cost, model, plan) -> None:
+        w = plan.com_weight
+        if not np.any(w > 0):
+            return
+        _, _, J, jdv = model.com()
+        cost.add(J, plan.com_acc - jdv, w)
+
+
+class AngularMomentumTask(Task):
+    """Rate of the centroidal angular momentum towards ``plan.L_rate``.
+
+    The floating base's rows of M vdot + h = J_c^T f are the contact wrench about the base
+    origin Bo (rotational rows) and the contact force (translational rows), in W. Moved to the
+    CoM, the moment of the contact forces about the CoM, which is Ldot (gravity has none), is
+    linear in vdot: Ldot = (M_r - [c - p_Bo]x M_t) vdot + (h_r - [c - p_Bo]x h_t).
+    """
+
+    def __init__(self, model):
+        self.rot = np.asarray(model.maps.v_base[:3])
+        self.trans = np.asarray(model.maps.v_base[3:])
+        self.q_pos = np.asarray(model.maps.q_base[4:])
+
+    def matrices(self, model) -> tuple[np.ndarray, np.ndarray]:
+        """(A (3 x nv), b (3)) with Ldot = A vdot + b [N m] (W)."""
+        M, h = model.mass_matrix(), model.bias()
+        com = model.com()[0]
+        r = com - model.q[self.q_pos]
+        S = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+        A = M[self.rot] - S @ M[self.trans]
+        b = h[self.rot] - S @ h[self.trans]
+        return A, b
+
+    def add_to(self, cost, model, plan) -> None:
+        if plan.L_weight <= 0.0:
+            return
+        A, b = self.matrices(model)
+        cost.add(A, plan.L_rate - b, np.full(3, plan.L_weight))
+
+
+class ScaledPelvisTask(PelvisOrientationTask):
+    """:class:`PelvisOrientationTask` with its weight times ``plan.pelvis_scale``."""
+
+    def add_to(self, cost, model, plan) -> None:
+        w0 = self.w
+        self.w = w0 * plan.pelvis_scale
+        try:
+            super().add_to(cost, model, plan)
+        finally:
+            self.w = w0
+
+
+class _OneSwing:
+    """The view of a plan that :class:`SwingSoleTask` reads (``.swing``)."""
+
+    __slots__ = ("swing",)
+
+    def __init__(self):
+        self.swing = None
+
+
+class SolesTask(Task):
+    """Both soles along ``plan.soles`` (the swing-sole rows of :class:`SwingSoleTask` for each
+    sole that has a reference)."""
+
+    def __init__(self, pos: TaskGains, rot: TaskGains):
+        self._swing = SwingSoleTask(pos, rot)
+        self._view = _OneSwing()
+
+    def add_to(self, cost, model, plan) -> None:
+        for ref in plan.soles:
+            if ref is not None:
+                self._view.swing = ref
+                self._swing.add_to(cost, model, self._view)

@@ -1,0 +1,80 @@
+"""The plan: what the planners hand to the tracking tasks for one control tick.
+
+A plan says which contacts are active and what each task should track: CoM acceleration and
+height, pelvis orientation, the swing sole, each hand, the joint posture. Planners
+(:class:`pr2_drake.controllers.gait.GaitPlanner`, an agent's hand targets) fill it; tasks
+(:mod:`pr2_drake.controllers.tasks`) read it. Frames: W world (z up); S a sole frame; H a hand
+sphere centre (``l_arm_sphere`` / ``r_arm_sphere``). Units: m, s, rad, N.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+HANDS = ("left_hand", "right_hand")  # index 0, 1 (as in pick_state)
+
+
+@dataclass
+class SoleContact:
+    """One sole's contact this tick: its normal-force bounds per contact point [N] and whether
+    its points are held by hard rows (loaded stance) or a soft cost (loading/unloading)."""
+
+    active: bool = True
+    fz_min: float = 2.0
+    fz_max: float = 0.0
+    hard: bool = True
+
+
+@dataclass
+class SwingReference:
+    """Desired swing-sole motion: p_WS, v_WS, a_WS (3 each, W) and R_WS_d, w_WS_d (W)."""
+
+    side: int
+    p: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    R: np.ndarray
+    w: np.ndarray
+
+
+@dataclass
+class HandReference:
+    """A hand's desired position p_WH [m] (None: no hand task) and whether it is attached
+    (``pick_state``): then its contact force is a QP variable within ``force_max`` [N] per
+    axis of W (centred on ``force_prior`` [N], the force expected at the hand)."""
+
+    p: np.ndarray | None = None
+    attached: bool = False
+    force_prior: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+
+@dataclass
+class WholeBodyPlan:
+    """Everything the tasks track in one tick (see the module docstring).
+
+    Attributes:
+        contacts: per sole (0 left, 1 right).
+        com_acc_xy: desired CoM acceleration in x, y [m/s^2] (W), already a feedback law.
+        com_z: desired CoM height [m] (W).
+        com_frame_yaw: when set, the CoM task's rows are expressed in this yaw frame and the
+            lateral row gets the single-support weight (line foot).
+        pelvis_R: desired pelvis orientation R_WB.
+        swing: swing-sole reference, or None in double support.
+        hands: per hand (0 left, 1 right).
+        phase, stance: gait phase (int) and stance side (-1 both) for the status port.
+        ground_z: mean height of the footholds [m] (fall detection).
+    """
+
+    contacts: list[SoleContact] = field(default_factory=lambda: [SoleContact(), SoleContact()])
+    com_acc_xy: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    com_z: float = 0.0
+    com_frame_yaw: float | None = None
+    pelvis_R: np.ndarray = field(default_factory=lambda: np.eye(3))
+    swing: SwingReference | None = None
+    hands: list[HandReference] = field(default_factory=lambda: [HandReference(),
+                                                                HandReference()])
+    phase: int = 0
+    stance: int = -1
+    ground_z: float = 0.0

@@ -1,0 +1,69 @@
+"""Task-6 perception: the ObjectDetector on rendered head-camera frames, camera pose by
+forward kinematics of the robot alone."""
+
+import numpy as np
+import pytest
+
+from pr2_drake.agents.search.perception import (
+    CameraIntrinsics,
+    HeadCameraKinematics,
+    ObjectDetector,
+    object_models_from_priors,
+)
+from pr2_drake.bench.perception import ViewRig
+
+
+@pytest.fixture(scope="module")
+def rig():
+    return ViewRig("low", seed=0)
+
+
+@pytest.fixture(scope="module")
+def detector(rig):
+    return ObjectDetector(object_models_from_priors(rig.tb.scene.priors),
+                          CameraIntrinsics.from_settings(rig.settings))
+
+
+def test_camera_pose_from_kinematics_matches_the_sensor(rig):
+    rig.pose_robot(1.7, -1.2, -1.4)
+    body, joints = rig.states()
+    X = HeadCameraKinematics().camera_pose(body, joints)
+    assert np.allclose(X.GetAsMatrix4(), rig.sensor_pose().GetAsMatrix4(), atol=1e-9)
+
+
+def test_object_models_have_the_mesh_sizes(detector):
+    m = detector.models
+    assert len(m) == 9
+    assert m["bottle"].height == pytest.approx(0.224, abs=0.002)
+    assert m["book"].flat_share > 0.7 > m["apple"].flat_share  # flat top vs round
+    assert np.argmax(m["cup"].colour) != np.argmax(m["apple"].colour)  # blue vs red
+
+
+def test_finds_targets_within_5_cm_on_rendered_frames(rig, detector):
+    kin = HeadCameraKinematics()
+    rng = np.random.default_rng(3)
+    checked = 0
+    for _ in range(4):
+        view = rig.random_view(rng)
+        X_WC = kin.camera_pose(view.body_state, view.joint_state)
+        dets = detector.detect(view.rgb, view.depth, X_WC)
+        for d in dets:  # every detection is a real object of its label
+            assert np.linalg.norm(d.p_WO - view.objects[d.label]) < 0.10, d
+        for target in view.visible:
+            hit = detector.find(view.rgb, view.depth, X_WC, target)
+            if hit is not None:
+                assert np.linalg.norm(hit.p_WO - view.objects[target]) < 0.05
+                checked += 1
+    assert checked >= 6  # most visible objects are found
+
+
+def test_empty_view_finds_nothing_and_bad_input_is_an_error(rig, detector):
+    rig.pose_robot(-3.3, 1.0, np.pi)  # facing the playroom's west wall from close
+    rgb, depth = rig.render()
+    body, joints = rig.states()
+    X_WC = HeadCameraKinematics().camera_pose(body, joints)
+    assert detector.detect(rgb, depth, X_WC) == []
+    with pytest.raises(ValueError, match="unknown target"):
+        detector.find(rgb, depth, X_WC, "banana")
+    with pytest.raises(ValueError, match="does not match"):
+        detector.detect(rgb[:10], depth[:10], X_WC)

@@ -1,0 +1,117 @@
+"""Footholds with height: the planar-patch terrain, footholds on treads, the swing over an edge,
+and one 0.10 m step climbed in closed loop (pr2_drake.controllers.{terrain_model,tread_steps},
+pr2_drake.bench.stairs)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pr2_drake.bench.stairs import StairsSim
+from pr2_drake.controllers.swing import SwingTrajectory
+from pr2_drake.controllers.terrain_model import (
+    PatchTerrain,
+    PlanarPatch,
+    stairs_from_priors,
+    stairs_terrain,
+)
+from pr2_drake.controllers.tread_steps import TreadFootstepPlanner
+from pr2_drake.controllers.walking_params import WalkingParams
+from tests._locomotion_sim import scene_geometry
+
+PARAMS = WalkingParams.load().with_overrides("controllers/walking_stairs.yaml")
+HALF_FOOT = 0.075  # [m] sole centre to heel / toe
+
+
+def test_stairs_from_the_task_priors_match_the_scene_on_every_tread_and_the_floor():
+    _, scene, *_ = scene_geometry(5, seed=0)
+    p = scene.priors
+    terrain = stairs_from_priors(p)
+    x0, d, h, n = p["step_start_x"], p["step_depth"], p["step_height"], p["step_count"]
+    assert terrain.height(x0 - 0.3, 0.0) == 0.0
+    for k in range(n):
+        for x in (x0 + k * d + 0.02, x0 + (k + 0.5) * d, x0 + (k + 1) * d - 0.02):
+            for y in (-0.8, 0.0, 0.8):
+                assert terrain.height(x, y) == pytest.approx((k + 1) * h)
+                assert terrain.height(x, y) == pytest.approx(scene.ground_height(x, y))
+    floor = x0 + n * d + 0.5
+    assert terrain.height(floor, 0.3) == pytest.approx(n * h) == scene.ground_height(floor, 0.3)
+    np.testing.assert_allclose(terrain.normal(floor, 0.0), [0.0, 0.0, 1.0])
+    assert [dz for _, dz in terrain.risers()] == pytest.approx([h] * n)
+
+
+def test_a_sloped_patch_answers_height_normal_and_landing_pitch():
+    ramp = PatchTerrain([PlanarPatch(0.0, 2.0, -1.0, 1.0, z=0.1, gx=0.1)])
+    assert ramp.height(1.5, 0.0) == pytest.approx(0.15)
+    n = ramp.normal(1.0, 0.0)
+    assert n[0] < 0 and n[2] > 0.99
+    z, pitch = ramp.foothold(None, 0.0, np.array([1.5, 0.0, 0.0, 0.0]))
+    assert z == pytest.approx(0.15) and pitch == pytest.approx(-np.arctan(0.1))  # toe up
+
+
+def test_a_riser_taller_than_the_planner_limit_is_refused_naming_the_terrain():
+    tall = stairs_terrain(1.0, 2, 0.20, 0.40, 2.0)
+    with pytest.raises(ValueError, match=r"stairs\(2 x 0.200 m risers.*0.200 m riser at "
+                                         r"x = 1.000 m.*max_step_height"):
+        TreadFootstepPlanner(PARAMS.gait, 0.01, tall)
+
+
+def _plan(terrain, x0=0.55, steps=24, speed=0.25):
+    planner = TreadFootstepPlanner(PARAMS.gait, 0.01, terrain)
+    feet = [np.array([x0, 0.11, 0.0, 0.0]), np.array([x0, -0.11, 0.0, 0.0])]
+    side = 1  # right foot first
+    out = []
+    for _ in range(steps):
+        planner.observe(feet)
+        stance = 1 - side
+        step = planner.next_steps(feet[stance], stance, 0.0, np.array([speed, 0.0, 0.0]), 1)[0]
+        out.append((side, feet[side].copy(), step))
+        feet[side] = step
+        side = 1 - side
+    return out
+
+
+@pytest.mark.parametrize("height", [0.05, 0.10, 0.15])
+def test_footholds_land_on_treads_and_step_to_over_each_riser(height):
+    terrain = stairs_terrain(1.0, 2, height, 0.40, 2.0, floor_length=1.2, down=True)
+    levels = set()
+    for side, start, step in _plan(terrain):
+        assert terrain.on_one_level(step)  # heel and toe (plus margin) on one tread
+        assert step[2] == pytest.approx(terrain.height(step[0], step[1]))
+        if abs(step[2] - start[2]) > 1e-6:  # a step up or down
+            assert abs(step[2] - start[2]) == pytest.approx(height)
+            assert abs(step[0] - start[0]) < 0.25  # step-to: one riser stride, no more
+        levels.add(round(step[2], 3))
+    assert levels == {round(k * height, 3) for k in range(3)}  # up both steps and down again
+
+
+def test_the_swing_over_a_riser_clears_it_with_toe_and_heel_and_lands_flat():
+    terrain = stairs_terrain(1.0, 1, 0.10, 0.40, 2.0)
+    start = np.array([1.0 - HALF_FOOT - 0.03, 0.11, 0.0, 0.0])
+    target = np.array([1.0 + HALF_FOOT + 0.03, 0.11, 0.10, 0.0])
+    g = PARAMS.gait
+    swing = SwingTrajectory(0.0, g.single_support, start, target, g.swing_height,
+                            g.swing_land_fraction)
+    swing.clear_z = terrain.swing_clearance(start, target)
+    swing.clear_fractions = (g.swing_clear_lift, g.swing_clear_lower)
+    assert swing.clear_z == pytest.approx(0.10 + terrain.clearance)
+    for t in np.linspace(0.0, swing.t_land, 200):
+        p, *_ = swing.evaluate(t)
+        for end in (-HALF_FOOT, HALF_FOOT):  # heel, toe: above the ground under them
+            assert p[2] >= terrain.height(p[0] + end, p[1]) - 1e-9
+    p, v, *_ = swing.evaluate(swing.t_land)
+    np.testing.assert_allclose(p, target[:3], atol=1e-9)
+    np.testing.assert_allclose(v, 0.0, atol=1e-9)
+    assert swing.pitch() == (0.0, 0.0)  # lands flat
+
+
+def test_one_step_up_ends_with_both_soles_on_the_tread_without_a_fall():
+    terrain = stairs_terrain(0.6, 1, 0.10, 0.40, 2.0, floor_length=2.0)
+    sim = StairsSim(terrain)
+    assert sim.walk(0.25, x_end=1.4, timeout=20.0)  # no fall; stands after the step
+    for side in (0, 1):
+        heel, toe = sim.sole_points(side)
+        for point in (heel, toe):
+            assert point[0] > 0.6 + 0.01  # past the riser
+            assert point[2] == pytest.approx(0.10, abs=0.01)  # on the tread
+    assert int(sim.status()[3]) == 0  # standing

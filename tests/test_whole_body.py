@@ -1,0 +1,235 @@
+"""Whole-body control as parts (pr2_drake.controllers.{tasks,gait,whole_body,footsteps}):
+task rows, the QP with the arms and a hand contact force, a footstep planner of our own, hand
+targets, and the task-2 reference agent."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+
+from pr2_drake.bench.walking import WalkingSim
+from pr2_drake.controllers.footsteps import FixedFootstepPlanner, FootstepPlanner
+from pr2_drake.controllers.plan import WholeBodyPlan
+from pr2_drake.controllers.tasks import PostureTask, TaskCost
+from pr2_drake.controllers.walking_params import WalkingParams
+from pr2_drake.controllers.wb_model import WholeBodyModel
+from pr2_drake.controllers.wbqp import WholeBodyQp
+from pr2_drake.controllers.whole_body import WholeBodyController, check_hand_targets
+from pr2_drake.ports import N_ARMS
+
+
+def _standing_q(model: WholeBodyModel) -> np.ndarray:
+    """The nominal pose with the base at standing height (the soles near z = 0)."""
+    q = model.q_nominal.copy()
+    q[model.maps.q_base[:4]] = [1.0, 0.0, 0.0, 0.0]
+    q[model.maps.q_base[4:]] = [0.0, 0.0, 0.58]
+    return q
+
+
+def test_posture_task_alone_sets_the_joint_accelerations():
+    """No contacts, only a posture task: the QP's joint accelerations equal its target (the
+    base falls freely; the arms and legs are actuated)."""
+    params = WalkingParams.load()
+    m = WholeBodyModel()
+    q = _standing_q(m)
+    rng = np.random.default_rng(0)
+    q_nominal = q[m.maps.q_joints] + rng.uniform(-0.05, 0.05, len(m.maps.q_joints))
+    v = np.zeros(m.nv)
+    m.update(q, v)
+    n = len(m.maps.v_joints)
+    task = PostureTask(m, q_nominal, np.full(n, 20.0), np.full(n, 4.0), np.ones(n))
+    plan = WholeBodyPlan()
+    (J, a, w), = task.rows(m, plan)
+    np.testing.assert_allclose(a, 20.0 * (q_nominal - q[m.maps.q_joints]))
+    assert J.shape == (n, m.nv) and np.all(w == 1.0)
+    cost = TaskCost(m.nv)
+    task.add_to(cost, m, plan)
+    qp = WholeBodyQp(m.nv, m.maps.v_base, m.v_legs, m.effort[N_ARMS:], 2 * m.n_points,
+                     params.qp, arm_v=m.v_arms, arm_effort=m.effort[:N_ARMS])
+    res = qp.solve(m.mass_matrix(), m.bias(), np.zeros((6 * m.n_points, m.nv)), cost.H,
+                   cost.g, np.zeros(2 * m.n_points))
+    assert res.ok
+    np.testing.assert_allclose(res.vdot[m.maps.v_joints], a, atol=1e-3)
+    # Free fall: the base accelerates down with gravity (no support).
+    assert res.vdot[m.maps.v_base[5]] == pytest.approx(-m.gravity, abs=0.05)
+    # The torques reproduce the dynamics: M vdot + h = [0; tau].
+    gen = m.mass_matrix() @ res.vdot + m.bias()
+    np.testing.assert_allclose(gen[m.maps.v_base], 0.0, atol=1e-6)
+    np.testing.assert_allclose(gen[m.v_legs], res.tau, atol=1e-6)
+    np.testing.assert_allclose(gen[m.v_arms], res.tau_arms, atol=1e-6)
+
+
+def test_held_hand_force_is_a_bounded_qp_variable():
+    """With a hand attached, its contact force enters the floating-base rows and stays within
+    the configured bounds; without, it is zero."""
+    core = WholeBodyController(arms="effort")
+    m = core.model
+    q = _standing_q(m)
+    v = np.zeros(m.nv)
+    core.update(0.0, q, v, np.zeros(3))
+    np.testing.assert_array_equal(core.last_result.hand_forces, 0.0)
+    m.update(q, v)
+    target = m.hand_point(0)[0] + np.array([0.05, 0.0, 0.05])
+    core.update(0.004, q, v, np.zeros(3), hand_targets=[target, None], attached=(True, False))
+    res = core.last_result
+    assert res.ok and res.tau_arms.shape == (N_ARMS,)
+    f_hand = res.hand_forces
+    assert np.all(np.abs(f_hand[0]) <= core.params.qp.hand_force_max + 1e-6)
+    np.testing.assert_array_equal(f_hand[1], 0.0)
+    m.update(q, v)
+    Jc = core.contacts.J_all
+    J_hand = m.hand_point(0)[2]
+    gen = (m.mass_matrix() @ res.vdot + m.bias() - Jc.T @ res.forces.reshape(-1)
+           - J_hand.T @ f_hand[0])
+    assert np.max(np.abs(gen[m.maps.v_base])) < 0.5
+    np.testing.assert_allclose(gen[m.v_arms], res.tau_arms, atol=0.5)
+
+
+def test_hand_targets_are_checked_and_clipped():
+    with pytest.raises(ValueError, match="hand_targets"):
+        check_hand_targets([[0.1, np.nan, 0.8], None])
+    with pytest.raises(ValueError, match="hand_targets"):
+        check_hand_targets([[0.1, 0.2], None])
+    with pytest.raises(ValueError, match="hand_targets"):
+        check_hand_targets([None])
+    assert check_hand_targets({"right_hand": [0.3, -0.2, 0.8]})[0] is None
+    core = WholeBodyController(arms="effort")
+    m = core.model
+    q = _standing_q(m)
+    core.update(0.0, q, np.zeros(m.nv), np.zeros(3))
+    far = m.shoulder_position(0) + np.array([2.0, 0.0, 0.0])
+    clipped = core.clip_hand_target(0, far)
+    assert np.linalg.norm(clipped - m.shoulder_position(0)) == pytest.approx(
+        core.params.arms.reach_max)
+    low = core.clip_hand_target(0, m.shoulder_position(0) + np.array([0.1, 0.0, -0.9]))
+    assert low[2] >= core.planner.plan.ground_z + core.params.arms.z_min - 1e-9
+    with pytest.raises(ValueError, match="hand_targets"):
+        core.update(0.004, q, np.zeros(m.nv), np.zeros(3), hand_targets=[[np.inf, 0, 1], None])
+
+
+def test_hand_target_in_reach_is_reached_while_standing():
+    sim = WalkingSim(arms="effort")
+    assert sim.run(1.0)
+    m = sim.walker.core.model
+    p_WB, *_ = sim.base_pose()
+    target = p_WB + np.array([0.28, 0.12, 0.15])
+    sim.set_hand_targets([target, None])
+    assert sim.run(3.0)  # no fall
+    err = np.linalg.norm(m.hand_point(0)[0] - target)
+    assert err < 0.02, err
+    p1, roll, pitch, _ = sim.base_pose()
+    assert abs(roll) < 0.1 and abs(pitch) < 0.1
+    assert np.linalg.norm(p1[:2] - p_WB[:2]) < 0.05  # no stepping away
+
+
+def test_fixed_footstep_planner_steps_on_its_footholds():
+    """A footstep planner of the test's own (three fixed footholds): the soles land there."""
+    gait = WalkingParams.load().gait
+    soles = [np.array([0.0167, 0.11, 0.0, 0.0]), np.array([0.0167, -0.11, 0.0, 0.0])]
+    steps = [soles[1] + [0.10, 0.0, 0.0, 0.0], soles[0] + [0.20, 0.0, 0.0, 0.0],
+             soles[1] + [0.20, 0.0, 0.0, 0.0]]
+    planner = FixedFootstepPlanner(steps, first_side=1, gait=gait)
+    sim = WalkingSim(footsteps=planner)
+    assert sim.run(5.0)
+    m = sim.walker.core.model
+    for side, target in ((1, steps[2]), (0, steps[1])):
+        p = m.sole_pose(side).translation()
+        assert np.hypot(*(p[:2] - target[:2])) < 0.02, (side, p, target)
+    assert int(sim.status()[3]) == 0  # standing again
+
+
+def test_valve_agent_turns_the_valve_beyond_45_degrees():
+    from pr2_drake.agents.valve import ValveAgent
+    from pr2_drake.episode import connect_by_name
+    from pr2_drake.testbed import Testbed, TestbedConfig
+
+    testbed = Testbed(TestbedConfig(task=2, seed=0))
+    builder = DiagramBuilder()
+    builder.AddSystem(testbed)
+    connect_by_name(builder, testbed, builder.AddSystem(ValveAgent(priors=testbed.scene.priors)))
+    simulator = Simulator(builder.Build())
+    ctx = testbed.GetMyContextFromRoot(simulator.get_mutable_context())
+    simulator.Initialize()
+    t = 0.0
+    while t < 30.0:
+        t += 1.0
+        simulator.AdvanceTo(t)
+        status = testbed.GetOutputPort("episode").Eval(ctx)
+        if status.done:
+            break
+    assert status.termination == "completed", status.termination
+    assert status.score == 15
+    assert status.memo["max_valve_angle_deg"] > 45.0
+
+
+def test_force_on_a_held_hand_is_estimated_and_leaned_against():
+    """A 30 N forward pull on the held left hand: the estimate finds it, the standing CoM leans
+    back against it (quasi-static moment balance), no fall."""
+    from pr2_drake.grasp import PickState
+
+    sim = WalkingSim(arms="effort", pick_state_from_testbed=False)
+    sim.walker.GetInputPort("pick_state").FixValue(
+        sim.walker_context, PickState(True, "left_hand", "rope"))
+    assert sim.run(1.0)
+    core = sim.walker.core
+    p_B, *_ = sim.base_pose()
+    sim.set_hand_targets([p_B + np.array([0.26, 0.14, 0.16]), None])
+    assert sim.run(1.0)
+    com0 = core.model.com()[0].copy()
+    sim.push(np.array([30.0, 0.0, 0.0]), body=sim.plant.GetBodyByName("l_arm_sphere"),
+             p_BQ=np.zeros(3))
+    assert sim.run(2.0)
+    f = core.hand_force.f[0]
+    assert abs(f[0] - 30.0) < 3.0 and np.all(np.abs(f[1:]) < 3.0), f
+    m = core.model
+    z_hand = m.hand_point(0)[0][2] - core.planner.plan.ground_z
+    lean = -30.0 * z_hand / (m.mass * m.gravity)
+    assert m.com()[0][0] - com0[0] == pytest.approx(lean, abs=0.02)
+    _, roll, pitch, _ = sim.base_pose()
+    assert abs(pitch) < 0.1 and abs(roll) < 0.1
+
+
+class _ThreeSteps(FootstepPlanner):
+    """The test's own footstep planner: right, left, right onto fixed footholds, then stop."""
+
+    adjustable = False  # land on the footholds (no capture-point adjustment)
+
+    def __init__(self, steps, gait):
+        self.steps = steps  # [(side, (x, y, z, yaw))]
+        self.gait = gait
+
+    def _index(self, sole, side):
+        for k, (s, f) in enumerate(self.steps):
+            if s == side and np.hypot(*(np.asarray(f[:2]) - sole[:2])) < 0.05:
+                return k
+        return -1
+
+    def keep_walking(self, command, footholds):
+        side, _ = self.steps[-1]
+        return footholds[side] is None or self._index(footholds[side], side) < 0
+
+    def first_swing_side(self, command, footholds):
+        return self.steps[0][0]
+
+    def next_steps(self, stance, stance_side, heading, command, n):
+        k = self._index(stance, stance_side)
+        out = [np.asarray(f, float) for _, f in self.steps[k + 1:k + 1 + n]]
+        while len(out) < n:  # after the last: stay (the gait stops there)
+            out.append(out[-1] if out else np.asarray(stance, float))
+        return out
+
+
+def test_own_footstep_planner_is_followed():
+    gait = WalkingParams.load().gait
+    x0 = 0.0167
+    steps = [(1, (x0 + 0.08, -0.11, 0.0, 0.0)), (0, (x0 + 0.16, 0.11, 0.0, 0.0)),
+             (1, (x0 + 0.16, -0.11, 0.0, 0.0))]
+    sim = WalkingSim(footsteps=_ThreeSteps(steps, gait))
+    assert sim.run(5.0)
+    m = sim.walker.core.model
+    for side, f in steps[1:]:
+        p = m.sole_pose(side).translation()
+        assert np.hypot(p[0] - f[0], p[1] - f[1]) < 0.02, (side, p, f)
+    assert int(sim.status()[3]) == 0  # standing again
