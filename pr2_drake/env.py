@@ -99,18 +99,27 @@ class Env:
         ep = self._episode
         if ep.status.done:
             raise EpisodeOver(f"the episode ended ({ep.status.termination}); call reset()")
+        self.apply(action)
+        status = ep.advance_to(ep.time + self.control_dt)
+        return status.done, status.success, self.observation()
+
+    def apply(self, action: dict[str, Any]) -> None:
+        """Validate ``action`` and fix it on the testbed's inputs, without simulating (what
+        :meth:`step` does first).
+
+        Raises:
+            InvalidAction: as :meth:`step`; nothing of the action was applied.
+        """
         try:
             parsed = parse_action(action)
         except ValueError as e:
             raise InvalidAction(str(e)) from None
-        ctx = ep.tb_context
+        ctx = self._episode.tb_context
         for group in ("arms", "legs"):
             if parsed[group] is not None:
                 self._ports[f"{group}_command"].FixValue(ctx, parsed[group])
         self._ports["pick"].FixValue(ctx, parsed["pick"])
         self._ports["release"].FixValue(ctx, parsed["release"])
-        status = ep.advance_to(ep.time + self.control_dt)
-        return status.done, status.success, self.observation()
 
     @property
     def status(self) -> EpisodeStatus:

@@ -1,17 +1,26 @@
 """Inside the sandbox: build the agent, then answer each observation with an action.
 
-``python -m pr2_drake.compete.child FD_IN FD_OUT FD_CAMERA`` (started by
-:class:`pr2_drake.compete.sandbox.AgentProcess`). Requests (pickled dicts with ``op``):
+``python -m pr2_drake.compete.child FD_IN FD_OUT FD_CAMERA SCRATCH`` (started by
+:class:`pr2_drake.compete.sandbox.AgentProcess`). Requests are pickled dicts with ``op``
+(the child trusts its parent); answers are JSON (the parent never unpickles agent data):
 
-- ``init`` {spec, kwargs}: import and build the agent; answer {kind, control_dt}.
-- ``reset`` {obs}: call the agent's ``reset(obs)`` if it has one; answer {}.
-- ``act`` {obs}: answer {action, compute} (compute: the agent's own time [s]).
+- ``init`` {spec, kwargs}: import and build the agent; answer {kind, control_dt, inputs}.
+- ``reset`` {obs}: a ``next_action`` agent's ``reset(obs)`` if it has one; answer {}.
+- ``act`` {obs}: a ``next_action`` agent; answer {action, compute} (compute: its time [s]).
+- ``tick`` {time, ports}: a System agent; answer {action, compute}.
 
-A System agent (a Drake System, like the built-in ones) runs in a small diagram of its own
-whose inputs ``joint_state`` and ``body_state`` are fixed from each observation; it advances
-to the observation's time, so its periodic updates see the same inputs as in the testbed.
-Answers are JSON; a raise is {error, type}, ``sys.exit`` is {exit}, an action that cannot be
-sent is {invalid}.
+A System agent (a Drake System, like the built-in agents) runs in a diagram of its own with a
+Simulator of its own. Each tick at time t: advance to just before t (running the updates
+due before t with the previous inputs), fix the inputs to the testbed's port values at t,
+evaluate the outputs (what the plant uses for its step at t, as in one diagram, where the
+agent's and the plant's updates at t all start from the same state), then run the updates due
+at t with the inputs at t. With a tick per physics step this is what the System sees when
+wired into the testbed: the built-in agents give the same plant state, bit for bit
+(tests/test_compete.py).
+
+Calls an agent must not make (sockets, processes, signals, writing outside its scratch
+folder) raise PermissionError inside the agent and are reported with the next answer as
+{forbidden}; the parent ends the episode ``agent_error``.
 """
 
 from __future__ import annotations
@@ -27,62 +36,59 @@ from typing import Any
 import numpy as np
 
 _HEADER = struct.Struct(">I")
+# Testbed outputs a sandboxed System agent may read (copies of them cross the boundary).
+ALLOWED_INPUTS = ("joint_state", "body_state", "pick_state", "task_feedback", "instruction",
+                  "rgbd", "score")
+TIME_TOLERANCE = 1e-7  # times closer than this are the same tick (sums of steps drift) [s]
 _OUTPUTS = {"legs_command": "legs", "arms_command": "arms", "pick": "pick", "release": "release"}
-_INPUTS = ("joint_state", "body_state")
+_FORBIDDEN_EVENTS = ("socket.__new__", "socket.connect", "socket.bind", "os.fork", "os.forkpty",
+                     "os.system", "os.posix_spawn", "os.exec", "os.spawn", "subprocess.Popen",
+                     "os.kill", "os.killpg", "signal.pthread_kill", "pty.spawn")
 
 
-class SystemPolicy:
-    """A Drake System agent evaluated on observations (see the module docstring)."""
+class SystemRunner:
+    """A Drake System agent stepped tick by tick (see the module docstring)."""
 
     def __init__(self, system):
         from pydrake.systems.analysis import Simulator
         from pydrake.systems.framework import DiagramBuilder
 
-        for i in range(system.num_input_ports()):
-            name = system.get_input_port(i).get_name()
-            if name not in _INPUTS:
-                raise ValueError(f"a sandboxed System agent may read only {_INPUTS}; it has "
-                                 f"input port {name!r}")
+        self.inputs = [system.get_input_port(i).get_name() for i in range(system.num_input_ports())]
+        bad = [n for n in self.inputs if n not in ALLOWED_INPUTS]
+        if bad:
+            raise ValueError(f"agent input ports {bad} are not offered in a competition; a "
+                             f"System agent may read {list(ALLOWED_INPUTS)}")
         builder = DiagramBuilder()
         builder.AddSystem(system)
         self.system = system
         self.diagram = builder.Build()
         self.sim = Simulator(self.diagram)
         self.context = system.GetMyMutableContextFromRoot(self.sim.get_mutable_context())
-        periods = _periods(system)
-        self.control_dt = min(periods) if periods else None
+        self.ports_in = {n: system.GetInputPort(n) for n in self.inputs}
+        self.ports_out = {key: system.GetOutputPort(n) for n, key in _OUTPUTS.items()
+                          if system.HasOutputPort(n)}
         self.started = False
 
-    def next_action(self, obs: dict[str, Any]) -> dict[str, Any]:
-        from pr2_drake.observation import state_vectors_from_obs
-
-        joint_state, body_state = state_vectors_from_obs(obs)
-        values = {"joint_state": joint_state, "body_state": body_state}
-        for name in _INPUTS:
-            if self.system.HasInputPort(name):
-                self.system.GetInputPort(name).FixValue(self.context, values[name])
+    def tick(self, t: float, values: dict[str, Any]) -> dict[str, Any]:
+        sim = self.sim
+        if self.started:
+            sim.AdvanceTo(t - TIME_TOLERANCE)  # the updates due before t, with old inputs
+        for name, port in self.ports_in.items():
+            port.FixValue(self.context, values[name])
         if not self.started:
-            self.sim.Initialize()
+            sim.Initialize()
             self.started = True
-        eps = 1e-6 * (self.control_dt or 1e-3)
-        self.sim.AdvanceTo(float(obs["time"]) + eps)  # runs the updates due at obs time
-        action: dict[str, Any] = {}
-        for port_name, key in _OUTPUTS.items():
-            if self.system.HasOutputPort(port_name):
-                action[key] = self.system.GetOutputPort(port_name).Eval(self.context)
-        return action
+        outputs = self._outputs()
+        sim.AdvanceTo(t + TIME_TOLERANCE)  # the updates due at t, with the inputs at t
+        return outputs
 
-
-def _periods(system) -> list[float]:
-    """The shortest update period [s] of ``system`` (its first event after t = 0), or []."""
-    context = system.CreateDefaultContext()
-    context.SetTime(1e-9)
-    t = system.CalcNextUpdateTime(context, system.AllocateCompositeEventCollection())
-    return [t] if np.isfinite(t) and t > 1e-6 else []
+    def _outputs(self) -> dict[str, Any]:
+        return {key: port.Eval(self.context) for key, port in self.ports_out.items()}
 
 
 def jsonable(x: Any, where: str = "action") -> Any:
-    """``x`` as JSON data (arrays as lists; floats exact). Raises TypeError naming the key."""
+    """``x`` as JSON data (arrays as lists; floats round-trip exactly). Raises TypeError
+    naming the key."""
     from pr2_drake.ports import JointGroupCommand
 
     if isinstance(x, JointGroupCommand):
@@ -101,19 +107,21 @@ def jsonable(x: Any, where: str = "action") -> Any:
         return x.item()
     if x is None or isinstance(x, (bool, int, float, str)):
         return x
-    if hasattr(x, "get_value") and hasattr(x, "size"):  # a BasicVector output
-        return np.asarray(x.get_value()).tolist()
     raise TypeError(f"{where}: a {type(x).__name__} cannot be sent")
 
 
 class Child:
     """The request loop."""
 
-    def __init__(self, fd_in: int, fd_out: int, fd_cam: int):
+    def __init__(self, fd_in: int, fd_out: int, fd_cam: int, scratch: str):
         self.fd_in, self.fd_out = fd_in, fd_out
         self.cam = mmap.mmap(fd_cam, 0, prot=mmap.PROT_READ)
+        self.scratch = os.path.realpath(scratch)
         self.agent = None
+        self.runner: SystemRunner | None = None
+        self.forbidden: list[str] = []
 
+    # -- channel ------------------------------------------------------------------------------
     def recv(self) -> dict[str, Any] | None:
         import pickle
 
@@ -121,7 +129,7 @@ class Child:
         if header is None:
             return None
         data = self._read(_HEADER.unpack(header)[0])
-        return None if data is None else pickle.loads(data)
+        return None if data is None else self.unpack(pickle.loads(data))
 
     def _read(self, n: int) -> bytes | None:
         out = bytearray()
@@ -138,37 +146,43 @@ class Child:
         while view:
             view = view[os.write(self.fd_out, view):]
 
-    def obs(self, obs: dict[str, Any]) -> dict[str, Any]:
-        cam = obs.get("cam")
-        if isinstance(cam, dict):
-            images = {}
-            for key, m in cam.items():
-                dtype = np.dtype(m["dtype"])
-                count = int(np.prod(m["shape"]))
-                images[key] = np.frombuffer(self.cam, dtype, count, m["offset"]).reshape(
-                    m["shape"]).copy()
-            obs["cam"] = images
-        return obs
+    def unpack(self, x: Any) -> Any:
+        """Replace shared-memory references (see ``sandbox.to_shared``) by array copies."""
+        if isinstance(x, dict):
+            if "__shm__" in x:
+                _, offset, shape, dtype = x["__shm__"]
+                count = int(np.prod(shape))
+                return np.frombuffer(self.cam, np.dtype(dtype), count, offset).reshape(
+                    shape).copy()
+            return {k: self.unpack(v) for k, v in x.items()}
+        if hasattr(x, "__dataclass_fields__") and any(
+                isinstance(getattr(x, f), dict) for f in x.__dataclass_fields__):
+            for f in x.__dataclass_fields__:
+                setattr(x, f, self.unpack(getattr(x, f)))
+        return x
 
+    # -- requests -----------------------------------------------------------------------------
     def handle(self, msg: dict[str, Any]) -> dict[str, Any]:
         op = msg.get("op")
         if op == "init":
             return self.init(msg["spec"], msg["kwargs"])
         if op == "reset":
-            if callable(getattr(self.agent, "reset", None)):
-                self.agent.reset(self.obs(msg["obs"]))
+            if self.runner is None and callable(getattr(self.agent, "reset", None)):
+                self.agent.reset(msg["obs"])
             return {}
+        t0 = time.perf_counter()
         if op == "act":
-            obs = self.obs(msg["obs"])
-            t0 = time.perf_counter()
-            action = self.agent.next_action(obs)
-            compute = time.perf_counter() - t0
-            try:
-                data = jsonable(action)
-            except TypeError as e:
-                return {"invalid": str(e)}
-            return {"action": data, "compute": compute}
-        raise RuntimeError(f"unknown request {op!r}")
+            action = self.agent.next_action(msg["obs"])
+        elif op == "tick":
+            action = self.runner.tick(msg["time"], msg["ports"])
+        else:
+            raise RuntimeError(f"unknown request {op!r}")
+        compute = time.perf_counter() - t0
+        try:
+            data = jsonable(action)
+        except TypeError as e:
+            return {"invalid": str(e)}
+        return {"action": data, "compute": compute}
 
     def init(self, spec: str, kwargs: dict[str, Any]) -> dict[str, Any]:
         from pr2_drake.agents import (
@@ -180,13 +194,36 @@ class Child:
 
         agent = instantiate_agent(load_agent_class(spec), **kwargs)
         if is_system_agent(agent):
-            self.agent = SystemPolicy(agent)
-            return {"kind": "system", "control_dt": self.agent.control_dt}
+            self.runner = SystemRunner(agent)
+            return {"kind": "system", "control_dt": None, "inputs": self.runner.inputs}
         if not is_policy_agent(agent):
             raise ValueError(f"agent {spec!r} is neither a Drake System nor has next_action(obs)")
         self.agent = agent
         dt = getattr(agent, "control_dt", None)
-        return {"kind": "policy", "control_dt": float(dt) if isinstance(dt, (int, float)) else None}
+        return {"kind": "policy", "inputs": [],
+                "control_dt": float(dt) if isinstance(dt, (int, float)) else None}
+
+    # -- forbidden calls ----------------------------------------------------------------------
+    def audit(self, event: str, args: tuple) -> None:
+        if event.startswith(_FORBIDDEN_EVENTS):
+            self._forbid(event)
+        elif event == "open" and len(args) >= 3 and self._writes(args[1], args[2]):
+            path = args[0]
+            if isinstance(path, int):
+                return
+            real = os.path.realpath(os.fsdecode(path))
+            if real != "/dev/null" and not real.startswith(self.scratch + os.sep):
+                self._forbid(f"open({real!r}) for writing")
+
+    @staticmethod
+    def _writes(mode, flags) -> bool:
+        if isinstance(mode, str):
+            return any(c in mode for c in "wax+")
+        return isinstance(flags, int) and bool(flags & (os.O_WRONLY | os.O_RDWR | os.O_CREAT))
+
+    def _forbid(self, what: str) -> None:
+        self.forbidden.append(what)
+        raise PermissionError(f"forbidden in the competition sandbox: {what}")
 
     def loop(self) -> None:
         while True:
@@ -196,19 +233,29 @@ class Child:
             try:
                 reply = self.handle(msg)
             except SystemExit as e:
-                reply = {"exit": e.code if isinstance(e.code, (int, str, type(None))) else
-                         str(e.code)}
+                code = e.code if isinstance(e.code, (int, str, type(None))) else str(e.code)
+                reply = {"exit": code}
             except MemoryError as e:
                 reply = {"error": f"MemoryError: {e}", "type": "MemoryError"}
             except BaseException as e:  # the agent's fault, whatever it is: report it
                 reply = {"error": f"{type(e).__name__}: {' '.join(str(e).split())}"[:1000],
                          "type": type(e).__name__}
+            if self.forbidden:
+                reply = {"forbidden": "; ".join(dict.fromkeys(self.forbidden))[:1000]}
             self.send(reply)
 
 
 def main(argv: list[str]) -> int:
     fd_in, fd_out, fd_cam = (int(a) for a in argv[:3])
-    Child(fd_in, fd_out, fd_cam).loop()
+    child = Child(fd_in, fd_out, fd_cam, argv[3])
+    # What the agents and the runner need is imported before the audit hook is installed.
+    import pydrake.all  # noqa: F401
+
+    import pr2_drake.agents  # noqa: F401
+    import pr2_drake.observation  # noqa: F401
+
+    sys.addaudithook(child.audit)
+    child.loop()
     return 0
 
 

@@ -1,10 +1,18 @@
 """One episode with the simulator and referee here and the agent in its sandbox.
 
 The parent builds the :class:`pr2_drake.episode.Episode` (no agent blocks) and drives it
-through :class:`pr2_drake.env.Env`: each control tick it sends the observation (a copy; camera
-frames through shared memory) and applies the action that comes back, validated like any
-other. Whatever the agent does ends at most its own episode, with a named termination and the
-points earned before it::
+through :class:`pr2_drake.env.Env`. Each control tick it sends copies of what the agent may
+see (camera frames through shared memory) and applies the action that comes back, validated
+like any other:
+
+- a ``next_action`` agent gets the observation dictionary every ``control_dt`` (the
+  scenario's, else the agent's ``control_dt`` attribute, else one physics step);
+- a Drake System agent gets the values of the testbed outputs its input ports name, every
+  physics step (its own diagram steps with them: see :mod:`pr2_drake.compete.child`), so it
+  behaves as if wired into the testbed.
+
+Whatever the agent does ends at most its own episode, with a named termination and the points
+earned before it::
 
     from pr2_drake.compete.proxy import run_sandboxed_episode
     report = run_sandboxed_episode(Scenario(task=1, seed=0, seconds=5))
@@ -33,24 +41,26 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
         scenario: the episode; ``agent`` is imported inside the sandbox.
         submission: a folder copied into the sandbox and put on the agent's import path.
         limits: the sandbox's limits (default :class:`SandboxLimits`).
-        hide: folders the agent must not see.
+        hide: folders the agent must not see (bubblewrap only).
 
     Returns:
         The report of :meth:`Episode.report` plus ``steps``, ``step_time_mean`` and
-        ``step_time_max`` (the agent's round trip per action, wall clock [s]),
-        ``agent_compute_mean`` (its own time per action [s]), ``ipc_overhead_mean`` (round trip
-        minus compute [s]), ``sandbox`` ("bwrap" or "none") and ``state_digest`` (a hash of the
-        final plant state, for determinism checks).
+        ``step_time_max`` (the agent's round trip per tick, wall clock [s]),
+        ``agent_compute_mean`` and ``agent_compute_max`` (its own time per tick [s]),
+        ``ipc_overhead_mean`` (round trip minus compute [s]), ``sandbox`` ("bwrap" or
+        "rlimits") and ``state_digest`` (a hash of the final plant state).
+
+    Raises:
+        ScenarioError: the scenario itself is bad (before anything runs).
     """
     from pr2_drake.env import Env, InvalidAction
 
     limits = limits or SandboxLimits()
     wall_start = time.perf_counter()
     scenario.validate()
-    spec = agent_spec(scenario)
     if scenario.diagram:
         raise ValueError("a sandboxed episode runs an agent, not a diagram YAML")
-    spec, submission = _file_spec(spec, submission)
+    spec, submission = _file_spec(agent_spec(scenario), submission)
     episode = Episode(scenario)
     priors = dict(episode.testbed.scene.priors)
     kwargs = dict(task=scenario.task, seed=scenario.seed, priors=priors, **scenario.agent_params)
@@ -62,26 +72,44 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
         agent.start()
         info, _ = agent.request({"op": "init", "spec": spec, "kwargs": kwargs},
                                 limits.startup_seconds)
-        dt = scenario.control_dt or info.get("control_dt") or scenario.plant.time_step
+        system = info.get("kind") == "system"
+        dt = scenario.control_dt or (None if system else info.get("control_dt"))
         dt = float(dt) if isinstance(dt, (int, float)) and 0 < dt <= 1.0 else None
         env = Env.from_episode(episode, control_dt=dt)
-        obs = env.observation()
-        agent.request({"op": "reset", "obs": obs}, limits.startup_seconds)
         deadline = wall_start + limits.episode_seconds
-        done = env.status.done
+        tb, ctx = episode.testbed, episode.tb_context
+        inputs = {n: tb.GetOutputPort(n) for n in info.get("inputs", []) if isinstance(n, str)
+                  and tb.HasOutputPort(n)}
+        if system and len(inputs) != len(info.get("inputs", [])):
+            raise AgentFault("agent_error", f"the agent reads ports the testbed lacks: "
+                                            f"{info.get('inputs')}")
+        obs = None if system else env.observation()
+        if not system:
+            agent.request({"op": "reset", "obs": obs}, limits.startup_seconds)
+        done = episode.status.done
+        tick0 = round(episode.time / env.control_dt) + 1
         while not done:
             if time.perf_counter() > deadline:
                 raise AgentFault("agent_timeout", f"the episode's wall-clock limit of "
                                                   f"{limits.episode_seconds:g} s")
-            reply, rtt = agent.request({"op": "act", "obs": obs}, limits.step_seconds)
+            if system:
+                msg = {"op": "tick", "time": episode.time,
+                       "ports": {n: p.Eval(ctx) for n, p in inputs.items()}}
+            else:
+                msg = {"op": "act", "obs": obs}
+            reply, rtt = agent.request(msg, limits.step_seconds)
             rtts.append(rtt)
             c = reply.get("compute")
             computes.append(float(c) if isinstance(c, (int, float)) and 0 <= c <= rtt else rtt)
             t0 = time.perf_counter()
             try:
-                done, _, obs = env.step(reply.get("action"))
+                env.apply(reply.get("action"))
             except InvalidAction as e:
                 raise AgentFault("invalid_action", str(e)) from None
+            # Ticks at k * dt, not at a sum of steps: they meet the plant's own step times.
+            done = episode.advance_to((len(rtts) - 1 + tick0) * env.control_dt).done
+            if not system and not done:
+                obs = env.observation()
             sim_wall += time.perf_counter() - t0
     except AgentFault as f:
         episode.end(f.termination, f.message)
@@ -93,10 +121,10 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
     c = np.asarray(computes) if computes else np.zeros(1)
     report.update(
         steps=len(rtts),
-        step_time_mean=round(float(r.mean()), 6), step_time_max=round(float(r.max()), 6),
-        agent_compute_mean=round(float(c.mean()), 6),
-        ipc_overhead_mean=round(float((r - c).mean()), 6),
-        sandbox="bwrap" if isolated else "none",
+        step_time_mean=round(float(r.mean()), 7), step_time_max=round(float(r.max()), 7),
+        agent_compute_mean=round(float(c.mean()), 7), agent_compute_max=round(float(c.max()), 7),
+        ipc_overhead_mean=round(float((r - c).mean()), 7),
+        sandbox="bwrap" if isolated else "rlimits",
         state_digest=state_digest(episode),
     )
     return report

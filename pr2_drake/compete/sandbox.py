@@ -39,6 +39,7 @@ CAMERA_BYTES = 64 << 20  # shared-memory block for camera frames [bytes]
 _HEADER = struct.Struct(">I")
 _PROJECT_ROOT = Path(__file__).resolve().parents[2]
 _COUNTER = itertools.count()
+NOBODY = 65534  # the uid an agent runs as when the harness is root and bubblewrap is missing
 
 
 @dataclass
@@ -160,7 +161,7 @@ class AgentProcess:
             sub_inside = f"{inner}/submission"
         pythonpath = os.pathsep.join(p for p in (sub_inside, str(_PROJECT_ROOT)) if p)
         child = [sys.executable, "-B", "-m", "pr2_drake.compete.child",
-                 *map(str, fds)]
+                 *map(str, fds), f"{inner}/work"]
         env = {"PATH": os.environ.get("PATH", "/usr/bin:/bin"), "PYTHONPATH": pythonpath,
                "HOME": f"{inner}/work", "TMPDIR": f"{inner}/work", "PYTHONUNBUFFERED": "1",
                "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
@@ -179,6 +180,11 @@ class AgentProcess:
         else:
             argv = child
         self._cgroup = self._make_cgroup()
+        self._drop_to = None
+        if not use_bwrap and os.getuid() == 0:
+            self._drop_to = NOBODY
+            for p in (self.scratch, *self.scratch.rglob("*")):
+                os.chown(p, NOBODY, NOBODY)
         log = open(self.scratch / "agent.log", "wb")
         try:
             self.proc = subprocess.Popen(
@@ -218,6 +224,13 @@ class AgentProcess:
         elif os.getuid() != 0:
             n = self.limits.processes + _count_own_processes()
             resource.setrlimit(resource.RLIMIT_NPROC, (n, n))
+        if self._drop_to is not None:  # root without bubblewrap: run as nobody
+            os.setgroups([])
+            os.setgid(self._drop_to)
+            os.setuid(self._drop_to)
+            if self._cgroup is None:
+                resource.setrlimit(resource.RLIMIT_NPROC,
+                                   (self.limits.processes, self.limits.processes))
 
     def close(self) -> None:
         """Kill the sandbox (SIGKILL: an agent ignoring SIGTERM goes too) and clean up."""
@@ -307,6 +320,9 @@ class AgentProcess:
             kind = str(reply.get("type", ""))
             text = " ".join(str(reply["error"]).split())[:500]
             raise AgentFault("agent_memory" if kind == "MemoryError" else "agent_error", text)
+        if "forbidden" in reply:
+            raise AgentFault("agent_error", "forbidden call: " + " ".join(
+                str(reply["forbidden"]).split())[:500])
         if "exit" in reply:
             raise AgentFault("agent_exit", f"the agent called sys.exit({reply['exit']!r})")
         if "invalid" in reply:
@@ -314,20 +330,10 @@ class AgentProcess:
         return reply, rtt
 
     def _pack_camera(self, message: dict[str, Any]) -> dict[str, Any]:
-        """Move camera images of an observation into the shared-memory block."""
-        obs = message.get("obs")
-        if not isinstance(obs, dict) or not isinstance(obs.get("cam"), dict):
-            return message
-        offset, cam = 0, {}
-        for key, image in obs["cam"].items():
-            a = np.ascontiguousarray(image)
-            if offset + a.nbytes > CAMERA_BYTES:
-                raise ValueError(f"camera frames exceed the {CAMERA_BYTES >> 20} MiB shared block")
-            self._cam[offset:offset + a.nbytes] = a.tobytes() if not a.flags.c_contiguous \
-                else memoryview(a).cast("B")
-            cam[key] = {"shm": True, "offset": offset, "shape": a.shape, "dtype": a.dtype.str}
-            offset += a.nbytes
-        return {**message, "obs": {**obs, "cam": cam}}
+        """Move the large arrays of a message (camera frames) into the shared-memory block;
+        the message carries references (see :func:`to_shared`)."""
+        used = [0]
+        return to_shared(message, self._cam, used, "")
 
     def _read_exact(self, n: int, t0: float, timeout: float) -> bytes:
         out = bytearray()
@@ -369,6 +375,33 @@ class AgentProcess:
             return AgentFault("agent_exit",
                               f"the agent process died of signal {signal.Signals(-code).name}")
         return AgentFault("agent_exit", f"the agent process exited with code {code}")
+
+
+SHARED_MIN_BYTES = 1 << 16  # arrays this large go through shared memory [bytes]
+
+
+def to_shared(x: Any, block: mmap.mmap, used: list[int], key: str) -> Any:
+    """``x`` with every numpy array of at least :data:`SHARED_MIN_BYTES` written into
+    ``block`` (after ``used[0]`` bytes) and replaced by a reference
+    ``{"__shm__": (key, offset, shape, dtype)}``; dataclasses (an ``RgbdFrame``) are copied
+    with their fields replaced."""
+    if isinstance(x, np.ndarray) and x.nbytes >= SHARED_MIN_BYTES:
+        a = np.ascontiguousarray(x)
+        offset = used[0]
+        if offset + a.nbytes > len(block):
+            raise ValueError(f"arrays exceed the {len(block) >> 20} MiB shared block")
+        block[offset:offset + a.nbytes] = memoryview(a).cast("B")
+        used[0] = offset + (a.nbytes + 63) // 64 * 64
+        return {"__shm__": (key, offset, a.shape, a.dtype.str)}
+    if isinstance(x, dict):
+        return {k: to_shared(v, block, used, f"{key}/{k}") for k, v in x.items()}
+    if hasattr(x, "__dataclass_fields__") and any(
+            isinstance(getattr(x, f), np.ndarray) for f in x.__dataclass_fields__):
+        from dataclasses import replace
+
+        return replace(x, **{f: to_shared(getattr(x, f), block, used, f"{key}.{f}")
+                             for f in x.__dataclass_fields__})
+    return x
 
 
 def _write_all(fd: int, data: bytes) -> None:
