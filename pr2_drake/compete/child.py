@@ -69,18 +69,32 @@ class SystemRunner:
                           if system.HasOutputPort(n)}
         self.started = False
 
-    def tick(self, t: float, values: dict[str, Any]) -> dict[str, Any]:
+    def peek(self, values: dict[str, Any]) -> dict[str, Any]:
+        """The outputs of the default state (before initialization) for ``values``."""
+        self._fix(values)
+        return self._outputs()
+
+    def tick(self, t: float, values: dict[str, Any], prev: dict[str, Any] | None = None,
+             t_prev: float | None = None) -> dict[str, Any]:
+        """The outputs at ``t`` for the testbed's port values ``values`` at ``t``, after the
+        updates due at ``t_prev`` ran with ``prev`` (the port values once the previous answer
+        was applied: the applied efforts in ``joint_state`` depend on it)."""
         sim = self.sim
-        if self.started:
-            sim.AdvanceTo(t - TIME_TOLERANCE)  # the updates due before t, with old inputs
-        for name, port in self.ports_in.items():
-            port.FixValue(self.context, values[name])
+        if self.started and prev is not None and t_prev is not None:
+            self._fix(prev)
+            sim.AdvanceTo(t_prev + TIME_TOLERANCE)  # the updates due at t_prev
+            sim.AdvanceTo(max(t_prev + TIME_TOLERANCE, t - TIME_TOLERANCE))  # and before t
+        self._fix(values)
         if not self.started:
             sim.Initialize()
             self.started = True
-        outputs = self._outputs()
-        sim.AdvanceTo(t + TIME_TOLERANCE)  # the updates due at t, with the inputs at t
-        return outputs
+        else:
+            sim.AdvanceTo(t)  # to t itself (outputs may read the time); the updates at t wait
+        return self._outputs()
+
+    def _fix(self, values: dict[str, Any]) -> None:
+        for name, port in self.ports_in.items():
+            port.FixValue(self.context, values[name])
 
     def _outputs(self) -> dict[str, Any]:
         return {key: port.Eval(self.context) for key, port in self.ports_out.items()}
@@ -174,7 +188,10 @@ class Child:
         if op == "act":
             action = self.agent.next_action(msg["obs"])
         elif op == "tick":
-            action = self.runner.tick(msg["time"], msg["ports"])
+            action = self.runner.tick(msg["time"], msg["ports"], msg.get("prev"),
+                                      msg.get("t_prev"))
+        elif op == "peek":
+            action = self.runner.peek(msg["ports"])
         else:
             raise RuntimeError(f"unknown request {op!r}")
         compute = time.perf_counter() - t0

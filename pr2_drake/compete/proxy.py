@@ -53,7 +53,7 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
     Raises:
         ScenarioError: the scenario itself is bad (before anything runs).
     """
-    from pr2_drake.env import Env, InvalidAction
+    from pr2_drake.env import Env
 
     limits = limits or SandboxLimits()
     wall_start = time.perf_counter()
@@ -84,17 +84,23 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
             raise AgentFault("agent_error", f"the agent reads ports the testbed lacks: "
                                             f"{info.get('inputs')}")
         obs = None if system else env.observation()
-        if not system:
+        if system:  # the outputs of its default state: the inputs of its initialization
+            reply, _ = agent.request({"op": "peek", "ports": _values(inputs, ctx)},
+                                     limits.startup_seconds)
+            _apply(env, reply)
+        else:
             agent.request({"op": "reset", "obs": obs}, limits.startup_seconds)
         done = episode.status.done
-        tick0 = round(episode.time / env.control_dt) + 1
+        tick0 = round(episode.time / env.control_dt)
+        prev, t_prev = None, None
         while not done:
             if time.perf_counter() > deadline:
                 raise AgentFault("agent_timeout", f"the episode's wall-clock limit of "
                                                   f"{limits.episode_seconds:g} s")
+            t = episode.time
             if system:
-                msg = {"op": "tick", "time": episode.time,
-                       "ports": {n: p.Eval(ctx) for n, p in inputs.items()}}
+                msg = {"op": "tick", "time": t, "ports": _values(inputs, ctx), "prev": prev,
+                       "t_prev": t_prev}
             else:
                 msg = {"op": "act", "obs": obs}
             reply, rtt = agent.request(msg, limits.step_seconds)
@@ -102,12 +108,11 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
             c = reply.get("compute")
             computes.append(float(c) if isinstance(c, (int, float)) and 0 <= c <= rtt else rtt)
             t0 = time.perf_counter()
-            try:
-                env.apply(reply.get("action"))
-            except InvalidAction as e:
-                raise AgentFault("invalid_action", str(e)) from None
+            _apply(env, reply)
+            if system:  # what its updates at t see (applied efforts follow the new action)
+                prev, t_prev = _values(inputs, ctx), t
             # Ticks at k * dt, not at a sum of steps: they meet the plant's own step times.
-            done = episode.advance_to((len(rtts) - 1 + tick0) * env.control_dt).done
+            done = episode.advance_to((tick0 + len(rtts)) * env.control_dt).done
             if not system and not done:
                 obs = env.observation()
             sim_wall += time.perf_counter() - t0
@@ -128,6 +133,19 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
         state_digest=state_digest(episode),
     )
     return report
+
+
+def _values(ports: dict[str, Any], context) -> dict[str, Any]:
+    return {name: port.Eval(context) for name, port in ports.items()}
+
+
+def _apply(env, reply: dict[str, Any]) -> None:
+    from pr2_drake.env import InvalidAction
+
+    try:
+        env.apply(reply.get("action"))
+    except InvalidAction as e:
+        raise AgentFault("invalid_action", str(e)) from None
 
 
 def _file_spec(spec: str, submission):
