@@ -181,7 +181,7 @@ class AgentProcess:
             argv = child
         self._cgroup = self._make_cgroup()
         self._drop_to = None
-        if not use_bwrap and os.getuid() == 0:
+        if not use_bwrap and os.getuid() == 0 and _usable_by_others():
             self._drop_to = NOBODY
             for p in (self.scratch, *self.scratch.rglob("*")):
                 os.chown(p, NOBODY, NOBODY)
@@ -402,6 +402,31 @@ def to_shared(x: Any, block: mmap.mmap, used: list[int], key: str) -> Any:
         return replace(x, **{f: to_shared(getattr(x, f), block, used, f"{key}.{f}")
                              for f in x.__dataclass_fields__})
     return x
+
+
+def _usable_by_others() -> bool:
+    """Whether another user can run this Python and read the project (every folder on the
+    way searchable by others)."""
+    for path in (Path(sys.executable).resolve(), Path(sys.prefix).resolve(), _PROJECT_ROOT):
+        for p in (path, *path.parents):
+            try:
+                mode = p.stat().st_mode
+            except OSError:
+                return False
+            if p.is_dir() and not mode & 0o001:
+                return False
+    return True
+
+
+def isolation_note(limits: "SandboxLimits") -> str:
+    """One line saying how agents are isolated here."""
+    if limits.isolation != "none" and bwrap_available():
+        return ("sandbox: bubblewrap (no network, read-only file system but a scratch folder, "
+                "own PID namespace) + resource limits + timeouts")
+    who = ("as user nobody" if os.getuid() == 0 and _usable_by_others() else
+           "as the harness's user")
+    return (f"sandbox: bubblewrap not available (apt-get install bubblewrap); falling back to "
+            f"resource limits (memory, CPU time, processes), timeouts and audit hooks, {who}")
 
 
 def _write_all(fd: int, data: bytes) -> None:
