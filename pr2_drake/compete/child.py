@@ -266,11 +266,10 @@ def main(argv: list[str]) -> int:
     fd_in, fd_out, fd_cam = (int(a) for a in argv[:3])
     child = Child(fd_in, fd_out, fd_cam, argv[3])
     # What the agents and the runner need is imported before the audit hook is installed.
-    import pydrake.all  # noqa: F401
+    import importlib
 
-    import pr2_drake.agents  # noqa: F401
-    import pr2_drake.observation  # noqa: F401
-
+    for module in ("pydrake.all", "pr2_drake.agents", "pr2_drake.observation"):
+        importlib.import_module(module)
     sys.addaudithook(child.audit)
     child.loop()
     return 0
