@@ -116,12 +116,27 @@ def jsonable(x: Any, where: str = "action") -> Any:
     if isinstance(x, np.ndarray):
         if x.dtype.kind not in "biuf" or x.size > 10000:
             raise TypeError(f"{where}: an array of {x.dtype} x {x.size} cannot be sent")
-        return x.tolist()
+        return x.astype(np.float64) if x.ndim == 1 and x.dtype.kind != "b" else x.tolist()
     if isinstance(x, np.generic):
         return x.item()
     if x is None or isinstance(x, (bool, int, float, str)):
         return x
     raise TypeError(f"{where}: a {type(x).__name__} cannot be sent")
+
+
+def _binary(x: Any, blob: list[bytes], used: list[int]) -> Any:
+    """``x`` with its numeric arrays moved into ``blob`` as float64 (see Child.send)."""
+    if isinstance(x, dict):
+        return {k: _binary(v, blob, used) for k, v in x.items()}
+    if isinstance(x, list) and x and isinstance(x[0], float) and len(x) > 4:
+        x = np.asarray(x, dtype=np.float64)
+    if isinstance(x, np.ndarray) and x.ndim == 1:
+        data = x.astype("<f8").tobytes()
+        ref = {"__f8__": [used[0], x.size]}
+        blob.append(data)
+        used[0] += len(data)
+        return ref
+    return x
 
 
 class Child:
@@ -134,6 +149,8 @@ class Child:
         self.agent = None
         self.runner: SystemRunner | None = None
         self.forbidden: list[str] = []
+        self.priors: dict[str, Any] = {}
+        self.start: tuple = ()
 
     # -- channel ------------------------------------------------------------------------------
     def recv(self) -> dict[str, Any] | None:
@@ -155,8 +172,12 @@ class Child:
         return bytes(out)
 
     def send(self, reply: dict[str, Any]) -> None:
-        data = json.dumps(reply).encode()
-        view = memoryview(_HEADER.pack(len(data)) + data)
+        """One frame: length, then the JSON header's length, the header, and the float64
+        arrays it refers to (``{"__f8__": [offset, count]}``) as raw bytes."""
+        blob: list[bytes] = []
+        head = json.dumps(_binary(reply, blob, [0])).encode()
+        body = _HEADER.pack(len(head)) + head + b"".join(blob)
+        view = memoryview(_HEADER.pack(len(body)) + body)
         while view:
             view = view[os.write(self.fd_out, view):]
 
@@ -179,14 +200,16 @@ class Child:
     def handle(self, msg: dict[str, Any]) -> dict[str, Any]:
         op = msg.get("op")
         if op == "init":
+            self.priors = dict(msg["kwargs"].get("priors") or {})
+            self.start = msg.get("start") or (np.zeros(3), np.array([1.0, 0, 0, 0]))
             return self.init(msg["spec"], msg["kwargs"])
         if op == "reset":
             if self.runner is None and callable(getattr(self.agent, "reset", None)):
-                self.agent.reset(msg["obs"])
+                self.agent.reset(self.observation(msg))
             return {}
         t0 = time.perf_counter()
         if op == "act":
-            action = self.agent.next_action(msg["obs"])
+            action = self.agent.next_action(self.observation(msg))
         elif op == "tick":
             action = self.runner.tick(msg["time"], msg["ports"], msg.get("prev"),
                                       msg.get("t_prev"))
@@ -201,7 +224,16 @@ class Child:
             return {"invalid": str(e)}
         return {"action": data, "compute": compute}
 
-    def init(self, spec: str, kwargs: dict[str, Any]) -> dict[str, Any]:
+    def observation(self, msg: dict[str, Any]) -> dict[str, Any]:
+        """The observation dictionary of a request (built here from the port values)."""
+        if "obs" in msg:
+            return msg["obs"]
+        from pr2_drake.observation import observation_from_ports
+
+        return observation_from_ports(msg["ports"], msg["time"], self.priors, *self.start)
+
+    def init(self, spec: str, kwargs: dict[str, Any],
+             start: tuple | None = None) -> dict[str, Any]:
         from pr2_drake.agents import (
             instantiate_agent,
             is_policy_agent,

@@ -70,7 +70,9 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
     sim_wall = 0.0
     try:
         agent.start()
-        info, _ = agent.request({"op": "init", "spec": spec, "kwargs": kwargs},
+        X = episode.testbed.X_WB_start
+        start = (X.translation().copy(), X.rotation().ToQuaternion().wxyz())
+        info, _ = agent.request({"op": "init", "spec": spec, "kwargs": kwargs, "start": start},
                                 limits.startup_seconds)
         system = info.get("kind") == "system"
         dt = scenario.control_dt or (None if system else info.get("control_dt"))
@@ -83,13 +85,14 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
         if system and len(inputs) != len(info.get("inputs", [])):
             raise AgentFault("agent_error", f"the agent reads ports the testbed lacks: "
                                             f"{info.get('inputs')}")
-        obs = None if system else env.observation()
+        obs_ports = {n: tb.GetOutputPort(n) for n in env.observation_ports()}
         if system:  # the outputs of its default state: the inputs of its initialization
             reply, _ = agent.request({"op": "peek", "ports": _values(inputs, ctx)},
                                      limits.startup_seconds)
             _apply(env, reply)
         else:
-            agent.request({"op": "reset", "obs": obs}, limits.startup_seconds)
+            agent.request({"op": "reset", "time": episode.time,
+                           "ports": _values(obs_ports, ctx)}, limits.startup_seconds)
         done = episode.status.done
         tick0 = round(episode.time / env.control_dt)
         prev, t_prev = None, None
@@ -102,7 +105,7 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
                 msg = {"op": "tick", "time": t, "ports": _values(inputs, ctx), "prev": prev,
                        "t_prev": t_prev}
             else:
-                msg = {"op": "act", "obs": obs}
+                msg = {"op": "act", "time": t, "ports": _values(obs_ports, ctx)}
             reply, rtt = agent.request(msg, limits.step_seconds)
             rtts.append(rtt)
             c = reply.get("compute")
@@ -113,8 +116,6 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
                 prev, t_prev = _values(inputs, ctx), t
             # Ticks at k * dt, not at a sum of steps: they meet the plant's own step times.
             done = episode.advance_to((tick0 + len(rtts)) * env.control_dt).done
-            if not system and not done:
-                obs = env.observation()
             sim_wall += time.perf_counter() - t0
     except AgentFault as f:
         episode.end(f.termination, f.message)

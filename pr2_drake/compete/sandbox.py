@@ -311,9 +311,10 @@ class AgentProcess:
         payload = self._read_exact(n, t0, timeout)
         rtt = time.perf_counter() - t0
         try:
-            reply = json.loads(payload.decode("utf-8"))
-        except (UnicodeDecodeError, ValueError):
-            raise AgentFault("agent_error", "garbage on the agent channel: not JSON") from None
+            reply = decode_reply(payload)
+        except (UnicodeDecodeError, ValueError, struct.error):
+            raise AgentFault("agent_error", "garbage on the agent channel: not a framed JSON "
+                                            "answer") from None
         if not isinstance(reply, dict):
             raise AgentFault("agent_error", "garbage on the agent channel: not a JSON object")
         if "error" in reply:
@@ -375,6 +376,31 @@ class AgentProcess:
             return AgentFault("agent_exit",
                               f"the agent process died of signal {signal.Signals(-code).name}")
         return AgentFault("agent_exit", f"the agent process exited with code {code}")
+
+
+def decode_reply(payload: bytes) -> Any:
+    """An answer of the child (see ``Child.send``): JSON header, float64 arrays after it.
+    Raises ValueError (or struct.error) on anything else; nothing in it is executed."""
+    (n,) = _HEADER.unpack_from(payload, 0)
+    if n > len(payload) - 4:
+        raise ValueError("header longer than the answer")
+    head = json.loads(payload[4:4 + n].decode("utf-8"))
+    blob = memoryview(payload)[4 + n:]
+
+    def arrays(x):
+        if isinstance(x, dict):
+            ref = x.get("__f8__")
+            if ref is not None and len(x) == 1:
+                offset, count = (int(v) for v in ref)
+                if offset < 0 or count < 0 or offset + 8 * count > len(blob):
+                    raise ValueError("array reference outside the answer")
+                return np.frombuffer(blob, "<f8", count, offset).copy()
+            return {k: arrays(v) for k, v in x.items()}
+        if isinstance(x, list):
+            return [arrays(v) for v in x]
+        return x
+
+    return arrays(head)
 
 
 SHARED_MIN_BYTES = 1 << 16  # arrays this large go through shared memory [bytes]
