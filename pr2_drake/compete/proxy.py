@@ -47,7 +47,8 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
         The report of :meth:`Episode.report` plus ``steps``, ``step_time_mean`` and
         ``step_time_max`` (the agent's round trip per tick, wall clock [s]),
         ``agent_compute_mean`` and ``agent_compute_max`` (its own time per tick [s]),
-        ``ipc_overhead_mean`` (round trip minus compute [s]), ``sandbox`` ("bwrap" or
+        ``ipc_overhead_mean`` and ``ipc_overhead_median`` (round trip minus compute [s]; the
+        median is robust to a busy machine's scheduling delays), ``sandbox`` ("bwrap" or
         "rlimits") and ``state_digest`` (a hash of the final plant state).
 
     Raises:
@@ -130,6 +131,7 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
         step_time_mean=round(float(r.mean()), 7), step_time_max=round(float(r.max()), 7),
         agent_compute_mean=round(float(c.mean()), 7), agent_compute_max=round(float(c.max()), 7),
         ipc_overhead_mean=round(float((r - c).mean()), 7),
+        ipc_overhead_median=round(float(np.median(r - c)), 7),
         sandbox="bwrap" if isolated else "rlimits",
         state_digest=state_digest(episode),
     )
