@@ -118,3 +118,14 @@ def test_the_sandbox_says_which_isolation_it_used():
                               limits=LIMITS)
     assert r["sandbox"] == ("bwrap" if bwrap_available() else "rlimits")
     assert r["steps"] == 5 and r["step_time_mean"] > 0 and r["agent_compute_max"] > 0
+
+
+def test_camera_frames_cross_through_shared_memory():
+    from pr2_drake.camera import CameraSettings
+
+    scenario = Scenario(task=6, seed=0, agent=f"{HOSTILE}:NeedsCamera", seconds=0.15,
+                        control_dt=0.01, camera=CameraSettings(enabled=True, width=320,
+                                                               height=240, fps=20))
+    r = run_sandboxed_episode(scenario, limits=LIMITS)
+    assert r["termination"] == "timeout", r.get("message")
+    assert r["steps"] == 15

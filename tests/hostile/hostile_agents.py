@@ -162,3 +162,16 @@ class GarbageOnTheChannel(_Later):
         fd_out = int(sys.argv[2])
         os.write(fd_out, b"\x00\x00\x00\x10not json at all!")
         time.sleep(5)
+
+
+class NeedsCamera(StandingAgent):
+    """Not hostile: raises unless the camera frames arrived (through shared memory) intact."""
+
+    def next_action(self, obs):
+        rgb, depth = obs["cam"]["rgb"], obs["cam"]["distance_to_image_plane"]
+        if rgb.dtype != np.uint8 or rgb.ndim != 3 or rgb.shape[2] != 3 or depth.dtype.kind != "f":
+            raise ValueError(f"bad frames {rgb.dtype} {rgb.shape} {depth.dtype}")
+        if obs["time"] > 0.05 and not rgb.any():
+            raise ValueError("an all-black frame")
+        rgb[:] = 0  # its own copy: the next frame must be intact again
+        return super().next_action(obs)
