@@ -82,18 +82,23 @@ def test_the_episode_after_a_hostile_one_is_bit_identical_to_a_clean_one():
     assert again["score"] == first["score"] == 5
 
 
-def test_a_system_agent_in_the_sandbox_matches_the_same_agent_in_process():
-    """StandingController (a Drake System, periodic unrestricted updates) stepped across the
-    process boundary every physics step gives the same plant state, bit for bit."""
+@pytest.mark.parametrize("task, spec", [
+    (1, "pr2_drake.controllers.standing:StandingController"),  # periodic unrestricted updates
+    (1, "pr2_drake.agents.walk_to_goal:RockyRoadAgent"),  # walking controller: discrete ones
+])
+def test_a_system_agent_in_the_sandbox_matches_the_same_agent_in_process(task, spec):
+    """A Drake System agent stepped across the process boundary every physics step gives the
+    same plant state as wired into the testbed, bit for bit."""
+    from pr2_drake.agents import instantiate_agent, load_agent_class
     from pr2_drake.compete.proxy import state_digest
-    from pr2_drake.controllers.standing import StandingController
     from pr2_drake.episode import Episode, Progress, _run_system, wire_system
 
-    scenario = Scenario(task=1, seed=0, agent="pr2_drake.controllers.standing:StandingController",
-                        seconds=0.3)
+    scenario = Scenario(task=task, seed=0, agent=spec, seconds=0.3)
     r = run_sandboxed_episode(scenario, limits=LIMITS)
     assert r["steps"] == 300 and r["termination"] == "timeout"
-    episode = Episode(scenario, wire_system(StandingController()))
+    cls = load_agent_class(spec)
+    episode = Episode(scenario, lambda b, tb: wire_system(instantiate_agent(
+        cls, priors=dict(tb.scene.priors), task=task, seed=0))(b, tb))
     _run_system(episode, Progress(None, episode.limit))
     assert r["state_digest"] == state_digest(episode)
 
