@@ -58,3 +58,25 @@ def test_a_bad_submission_yaml_is_named(tmp_path):
              str(tmp_path / "o"))
     assert r.returncode == 2
     assert "bad/submission.yaml" in r.stderr
+
+
+def test_leaderboard_ranks_by_total_then_completion_time(tmp_path):
+    from pr2_drake.compete.leaderboard import write_leaderboard
+
+    def row(sub, task, seed, score, t):
+        top = {1: 15.0, 4: 10.0}[task]
+        return {"submission": sub, "task": task, "seed": seed, "score": score, "max_score": top,
+                "termination": "completed" if score == top else "timeout",
+                "items": [], "sim_time": t, "wall_time": 1.0}
+
+    rows = [row("slow", 1, 0, 15.0, 40.0), row("slow", 4, 0, 10.0, 30.0),
+            row("fast", 1, 0, 15.0, 20.0), row("fast", 4, 0, 10.0, 30.0),
+            row("half", 1, 0, 10.0, 50.0), row("half", 4, 0, 5.0, 120.0)]
+    (tmp_path / "results.json").write_text(json.dumps({"competition": {}, "episodes": rows}))
+    text = write_leaderboard(tmp_path)
+    ranks = [line.split("|")[2].strip() for line in text.splitlines() if line.startswith("| ")
+             and line.split("|")[1].strip().isdigit()]
+    assert ranks == ["fast", "slow", "half"]
+    assert "| 1 | fast | 25.0 | 15.0 (20.0 s) | 10.0 (30.0 s) |" in text
+    assert (tmp_path / "plots" / "category_points.png").stat().st_size > 0
+    assert "fast" in (tmp_path / "leaderboard.html").read_text()
