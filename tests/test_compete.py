@@ -134,3 +134,26 @@ def test_camera_frames_cross_through_shared_memory():
     r = run_sandboxed_episode(scenario, limits=LIMITS)
     assert r["termination"] == "timeout", r.get("message")
     assert r["steps"] == 15
+
+
+@pytest.mark.skipif(not bwrap_available(), reason="hiding folders needs bubblewrap")
+def test_other_submissions_are_hidden(tmp_path):
+    others = tmp_path / "others"
+    others.mkdir()
+    (others / "secret_solver.py").write_text("x = 1\n")
+    r = run_sandboxed_episode(_scenario(f"{HOSTILE}:ReadsOthers", 0.05, target=str(others)),
+                              limits=LIMITS, hide=(others,))
+    assert r["termination"] == "timeout", r.get("message")
+
+
+def test_the_episode_wall_clock_limit_ends_a_slow_agent():
+    limits = SandboxLimits(step_seconds=1.0, startup_seconds=60.0, episode_seconds=8.0)
+    r = run_sandboxed_episode(_scenario(f"{HOSTILE}:SlowSteps", 10.0), limits=limits)
+    assert r["termination"] == "agent_timeout" and "wall-clock limit" in r["message"]
+    assert r["score"] == 5 and r["sim_time"] < 10.0
+
+
+def test_a_submission_that_cannot_be_imported_is_an_agent_error():
+    r = run_sandboxed_episode(_scenario("no_such_module_here:Solver"), limits=LIMITS)
+    assert r["termination"] == "agent_error" and "no_such_module_here" in r["message"]
+    assert r["steps"] == 0

@@ -79,7 +79,6 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
         dt = scenario.control_dt or (None if system else info.get("control_dt"))
         dt = float(dt) if isinstance(dt, (int, float)) and 0 < dt <= 1.0 else None
         env = Env.from_episode(episode, control_dt=dt)
-        deadline = wall_start + limits.episode_seconds
         tb, ctx = episode.testbed, episode.tb_context
         inputs = {n: tb.GetOutputPort(n) for n in info.get("inputs", []) if isinstance(n, str)
                   and tb.HasOutputPort(n)}
@@ -95,6 +94,7 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
             agent.request({"op": "reset", "time": episode.time,
                            "ports": _values(obs_ports, ctx)}, limits.startup_seconds)
         done = episode.status.done
+        deadline = time.perf_counter() + limits.episode_seconds  # startup has its own budget
         tick0 = round(episode.time / env.control_dt)
         prev, t_prev = None, None
         while not done:

@@ -52,7 +52,8 @@ class SandboxLimits:
         cpu_seconds: CPU time of the agent's process per episode [s].
         step_seconds: wall-clock budget for one action (round trip) [s].
         startup_seconds: wall-clock budget to import and build the agent [s].
-        episode_seconds: wall-clock limit of a whole episode (simulation included) [s].
+        episode_seconds: wall-clock limit of an episode once the agent is built (simulation
+            included) [s].
         isolation: "auto" (bubblewrap when it works), "bwrap" (required) or "none".
     """
 

@@ -175,3 +175,20 @@ class NeedsCamera(StandingAgent):
             raise ValueError("an all-black frame")
         rgb[:] = 0  # its own copy: the next frame must be intact again
         return super().next_action(obs)
+
+
+class ReadsOthers(StandingAgent):
+    """Raises if it can see any file in ``target`` (another submission's folder)."""
+
+    def __init__(self, target: str = ""):
+        super().__init__()
+        if os.path.isdir(target) and os.listdir(target):
+            raise RuntimeError(f"saw {os.listdir(target)}")
+
+
+class SlowSteps(StandingAgent):
+    """Within the step budget every step, but too slow for the episode's wall-clock limit."""
+
+    def next_action(self, obs):
+        time.sleep(0.3)
+        return super().next_action(obs)
