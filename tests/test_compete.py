@@ -157,3 +157,9 @@ def test_a_submission_that_cannot_be_imported_is_an_agent_error():
     r = run_sandboxed_episode(_scenario("no_such_module_here:Solver"), limits=LIMITS)
     assert r["termination"] == "agent_error" and "no_such_module_here" in r["message"]
     assert r["steps"] == 0
+
+
+def test_a_system_agent_gets_only_the_offered_ports():
+    r = _sandboxed("PeeksAtPlantState")
+    assert r["termination"] == "agent_error" and "ports that are not offered" in r["message"], r
+    assert r["steps"] == 0

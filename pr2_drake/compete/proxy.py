@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from pr2_drake.compete.child import ALLOWED_INPUTS
 from pr2_drake.compete.sandbox import AgentFault, AgentProcess, SandboxLimits
 from pr2_drake.episode import Episode, agent_spec
 from pr2_drake.scenario import Scenario
@@ -80,11 +81,12 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
         dt = float(dt) if isinstance(dt, (int, float)) and 0 < dt <= 1.0 else None
         env = Env.from_episode(episode, control_dt=dt)
         tb, ctx = episode.testbed, episode.tb_context
-        inputs = {n: tb.GetOutputPort(n) for n in info.get("inputs", []) if isinstance(n, str)
-                  and tb.HasOutputPort(n)}
-        if system and len(inputs) != len(info.get("inputs", [])):
-            raise AgentFault("agent_error", f"the agent reads ports the testbed lacks: "
-                                            f"{info.get('inputs')}")
+        asked = info.get("inputs") if isinstance(info.get("inputs"), list) else []
+        inputs = {n: tb.GetOutputPort(n) for n in asked if isinstance(n, str)
+                  and n in ALLOWED_INPUTS and tb.HasOutputPort(n)}
+        if system and len(inputs) != len(asked):  # the parent decides what crosses
+            raise AgentFault("agent_error", f"the agent reads ports that are not offered: "
+                                            f"{str(asked)[:200]}; offered: {ALLOWED_INPUTS}")
         obs_ports = {n: tb.GetOutputPort(n) for n in env.observation_ports()}
         if system:  # the outputs of its default state: the inputs of its initialization
             reply, _ = agent.request({"op": "peek", "ports": _values(inputs, ctx)},
@@ -149,6 +151,10 @@ def _apply(env, reply: dict[str, Any]) -> None:
         env.apply(reply.get("action"))
     except InvalidAction as e:
         raise AgentFault("invalid_action", str(e)) from None
+    except (TypeError, KeyError, AttributeError, IndexError, RecursionError) as e:
+        # Whatever the agent sent, the harness goes on.
+        raise AgentFault("invalid_action", f"action: {type(e).__name__}: "
+                                           f"{' '.join(str(e).split())[:300]}") from None
 
 
 def _file_spec(spec: str, submission):

@@ -313,7 +313,7 @@ class AgentProcess:
         rtt = time.perf_counter() - t0
         try:
             reply = decode_reply(payload)
-        except (UnicodeDecodeError, ValueError, struct.error):
+        except (UnicodeDecodeError, ValueError, struct.error, RecursionError, TypeError):
             raise AgentFault("agent_error", "garbage on the agent channel: not a framed JSON "
                                             "answer") from None
         if not isinstance(reply, dict):

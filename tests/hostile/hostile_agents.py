@@ -192,3 +192,27 @@ class SlowSteps(StandingAgent):
     def next_action(self, obs):
         time.sleep(0.3)
         return super().next_action(obs)
+
+
+def _peeking_system():
+    """A System agent that reads the whole plant state, after widening the child's list of
+    offered ports (the parent decides what crosses, not the child)."""
+    from pydrake.systems.framework import LeafSystem
+
+    import pr2_drake.compete.child as child
+    from pr2_drake.controllers.standing import StandingController
+
+    child.ALLOWED_INPUTS = child.ALLOWED_INPUTS + ("plant_state",)
+
+    class PeeksAtPlantState(StandingController):
+        __slots__ = ()
+
+        def __init__(self):
+            super().__init__()
+            LeafSystem.DeclareVectorInputPort(self, "plant_state", 1)
+
+    return PeeksAtPlantState
+
+
+def PeeksAtPlantState():  # noqa: N802 (an agent factory)
+    return _peeking_system()()
