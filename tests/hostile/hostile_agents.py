@@ -202,7 +202,9 @@ def _peeking_system():
     import pr2_drake.compete.child as child
     from pr2_drake.controllers.standing import StandingController
 
-    child.ALLOWED_INPUTS = child.ALLOWED_INPUTS + ("plant_state",)
+    for module in (child, sys.modules["__main__"]):  # the child runs as __main__
+        if hasattr(module, "ALLOWED_INPUTS"):
+            module.ALLOWED_INPUTS = module.ALLOWED_INPUTS + ("plant_state",)
 
     class PeeksAtPlantState(StandingController):
         __slots__ = ()
