@@ -76,7 +76,6 @@ def test_the_episode_after_a_hostile_one_is_bit_identical_to_a_clean_one():
     standing = "pr2_drake.agents.standing:StandingAgent"
     first = run_sandboxed_episode(_scenario(standing), limits=LIMITS)
     _sandboxed("PatchReferee")
-    _sandboxed("GcTeleport")
     again = run_sandboxed_episode(_scenario(standing), limits=LIMITS)
     assert again["state_digest"] == first["state_digest"]
     assert again["score"] == first["score"] == 5
@@ -147,7 +146,7 @@ def test_other_submissions_are_hidden(tmp_path):
 
 
 def test_the_episode_wall_clock_limit_ends_a_slow_agent():
-    limits = SandboxLimits(step_seconds=1.0, startup_seconds=60.0, episode_seconds=8.0)
+    limits = SandboxLimits(step_seconds=1.0, startup_seconds=60.0, episode_seconds=3.0)
     r = run_sandboxed_episode(_scenario(f"{HOSTILE}:SlowSteps", 10.0), limits=limits)
     assert r["termination"] == "agent_timeout" and "wall-clock limit" in r["message"]
     assert r["score"] == 5 and r["sim_time"] < 10.0
