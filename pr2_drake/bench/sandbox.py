@@ -89,7 +89,8 @@ def main(argv: list[str]) -> int:
     print(isolation_note(limits))
     print(f"task {a.task}, {a.seconds:g} s simulated, a tick per physics step (1 ms)"
           + (f", camera {a.camera}" if camera else ""))
-    print(f"  {'agent':<48}{'ticks':>7}{'round trip':>12}{'compute':>10}{'overhead':>10}{'median':>9}"
+    print(f"  {'agent':<48}{'ticks':>7}{'round trip':>12}{'compute':>10}{'overhead':>10}"
+          f"{'median':>9}"
           f"{'wall':>8}{'in proc.':>10}")
     for spec in AGENTS:
         scenario = Scenario(task=a.task, seed=0, agent=spec, seconds=a.seconds, camera=camera,

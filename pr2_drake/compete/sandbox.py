@@ -190,7 +190,8 @@ class AgentProcess:
         try:
             self.proc = subprocess.Popen(
                 argv, pass_fds=fds, env=env,
-                cwd=str(self.scratch / "submission") if self.submission is not None else str(work), stdin=subprocess.DEVNULL,
+                cwd=str(self.scratch / "submission" if self.submission is not None else work),
+                stdin=subprocess.DEVNULL,
                 stdout=log, stderr=subprocess.STDOUT, start_new_session=True,
                 preexec_fn=self._limit_child)
         finally:
