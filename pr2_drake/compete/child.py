@@ -85,11 +85,11 @@ class SystemRunner:
         updates due at ``t_prev`` ran with ``prev`` (the port values once the previous answer
         was applied: the applied efforts in ``joint_state`` depend on it)."""
         sim = self.sim
-        if self.started and prev is not None and t_prev is not None:
+        if self.started and t_prev is not None:
             # In one diagram the plant steps first (an unrestricted update) and a discrete
             # update at t_prev sees its result: the port values now. Unrestricted updates at
             # t_prev see the state before the step, with the previous answer applied: prev.
-            self._fix(values if self.discrete else prev)
+            self._fix(values if self.discrete or prev is None else prev)
             sim.AdvanceTo(t_prev + TIME_TOLERANCE)  # the updates due at t_prev
             sim.AdvanceTo(max(t_prev + TIME_TOLERANCE, t - TIME_TOLERANCE))  # and before t
         self._fix(values)
@@ -252,7 +252,8 @@ class Child:
         agent = instantiate_agent(load_agent_class(spec), **kwargs)
         if is_system_agent(agent):
             self.runner = SystemRunner(agent)
-            return {"kind": "system", "control_dt": None, "inputs": self.runner.inputs}
+            return {"kind": "system", "control_dt": None, "inputs": self.runner.inputs,
+                    "discrete": self.runner.discrete}
         if not is_policy_agent(agent):
             raise ValueError(f"agent {spec!r} is neither a Drake System nor has next_action(obs)")
         self.agent = agent

@@ -115,8 +115,10 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
             computes.append(float(c) if isinstance(c, (int, float)) and 0 <= c <= rtt else rtt)
             t0 = time.perf_counter()
             _apply(env, reply)
-            if system:  # what its updates at t see (applied efforts follow the new action)
-                prev, t_prev = _values(inputs, ctx), t
+            if system:  # what its unrestricted updates at t see (the applied efforts follow
+                # the new action); its discrete updates see the next tick's values instead
+                prev = None if info.get("discrete") is True else _values(inputs, ctx)
+                t_prev = t
             # Ticks at k * dt, not at a sum of steps: they meet the plant's own step times.
             done = episode.advance_to((tick0 + len(rtts)) * env.control_dt).done
             sim_wall += time.perf_counter() - t0
