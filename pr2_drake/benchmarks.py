@@ -214,7 +214,8 @@ BENCHMARKS = {"sim": bench_sim, "camera": bench_camera, "startup": bench_startup
               "whole-body": _module_benchmark("whole_body"),
               "perception": _module_benchmark("perception"),
               "jumping": _module_benchmark("jumping"),
-              "stairs": _module_benchmark("stairs")}
+              "stairs": _module_benchmark("stairs"),
+              "sandbox": _module_benchmark("sandbox")}
 """Every ``pr2-drake bench`` command by name; the CLI's choices come from here."""
 
 

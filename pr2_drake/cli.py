@@ -8,6 +8,8 @@
 
 Every episode is a :class:`pr2_drake.scenario.Scenario`: the YAML file, then the flags, then
 the ``--set`` overrides.
+    pr2-drake compete SUBMISSIONS_DIR --tasks all|1,3 --seeds A:B [--jobs J] --out DIR
+    pr2-drake leaderboard DIR
     pr2-drake bench {sim,camera,startup,walking,whole-body,perception,...} [...]
     pr2-drake tasks
 
@@ -262,6 +264,32 @@ def cmd_eval(args) -> int:
     return 0
 
 
+def cmd_compete(args) -> int:
+    from pr2_drake.compete.runner import parse_tasks, run_competition, with_limits
+    from pr2_drake.compete.sandbox import SandboxLimits
+
+    if args.backend != "local":
+        raise SystemExit("pr2-drake compete: --backend ray is not implemented yet; use "
+                         "--backend local (the default) with --jobs")
+    tasks = parse_tasks(args.tasks)
+    seeds = _parse_seeds(args.seeds)
+    limits = with_limits(SandboxLimits(), step_seconds=args.step_budget,
+                         episode_seconds=args.episode_wall, memory_mb=args.memory_mb,
+                         isolation=args.isolation)
+    rows = run_competition(args.submissions, tasks, seeds, args.out, jobs=max(1, args.jobs),
+                           seconds=args.seconds, limits=limits)
+    print(f"{len(rows)} episodes in {args.out}/results.json and results.csv; "
+          f"`pr2-drake leaderboard {args.out}` ranks them")
+    return 0
+
+
+def cmd_leaderboard(args) -> int:
+    from pr2_drake.compete.leaderboard import write_leaderboard
+
+    print(write_leaderboard(args.dir, plots=not args.no_plots))
+    return 0
+
+
 def cmd_bench(args) -> int:
     from pr2_drake.benchmarks import run_benchmark
 
@@ -305,6 +333,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--jobs", type=int, default=1, help="parallel processes")
     p.add_argument("--out", metavar="JSON", help="write all reports and the summary")
     p.set_defaults(func=cmd_eval)
+
+    p = sub.add_parser("compete", help="run every submission of a folder, sandboxed, over "
+                                       "tasks and seeds (resumable)")
+    p.add_argument("submissions", metavar="SUBMISSIONS_DIR",
+                   help="one subfolder per submission, each with a submission.yaml")
+    p.add_argument("--tasks", default="all", help="all, or a comma list of ids/names")
+    p.add_argument("--seeds", default="0:5", help="A:B (B exclusive) or a comma list")
+    p.add_argument("--jobs", type=int, default=1, help="episodes at once (processes)")
+    p.add_argument("--out", required=True, metavar="DIR", help="results folder (resumes)")
+    p.add_argument("--seconds", type=float, help="cut every episode to this many simulated "
+                                                 "seconds (default: the task's limit)")
+    p.add_argument("--step-budget", type=float, help="wall-clock budget of one agent step [s] "
+                                                     "(default 2)")
+    p.add_argument("--episode-wall", type=float, help="wall-clock limit of one episode [s] "
+                                                      "(default 3600)")
+    p.add_argument("--memory-mb", type=int, help="agent memory [MiB] (default 4096)")
+    p.add_argument("--isolation", choices=("auto", "bwrap", "none"),
+                   help="auto: bubblewrap where it works (default)")
+    p.add_argument("--backend", choices=("local", "ray"), default="local")
+    p.set_defaults(func=cmd_compete)
+
+    p = sub.add_parser("leaderboard", help="rank a compete results folder; tables and plots")
+    p.add_argument("dir", metavar="DIR", help="the --out folder of pr2-drake compete")
+    p.add_argument("--no-plots", action="store_true", help="tables only")
+    p.set_defaults(func=cmd_leaderboard)
 
     from pr2_drake.benchmarks import BENCHMARKS
 

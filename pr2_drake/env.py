@@ -19,7 +19,7 @@ import numpy as np
 from pydrake.geometry import Meshcat
 
 from pr2_drake.episode import Episode
-from pr2_drake.observation import joint_and_body_obs, parse_action
+from pr2_drake.observation import observation_from_ports, parse_action
 from pr2_drake.ports import JointGroupCommand
 from pr2_drake.scenario import Scenario
 from pr2_drake.tasks.base import EpisodeStatus
@@ -99,18 +99,27 @@ class Env:
         ep = self._episode
         if ep.status.done:
             raise EpisodeOver(f"the episode ended ({ep.status.termination}); call reset()")
+        self.apply(action)
+        status = ep.advance_to(ep.time + self.control_dt)
+        return status.done, status.success, self.observation()
+
+    def apply(self, action: dict[str, Any]) -> None:
+        """Validate ``action`` and fix it on the testbed's inputs, without simulating (what
+        :meth:`step` does first).
+
+        Raises:
+            InvalidAction: as :meth:`step`; nothing of the action was applied.
+        """
         try:
             parsed = parse_action(action)
         except ValueError as e:
             raise InvalidAction(str(e)) from None
-        ctx = ep.tb_context
+        ctx = self._episode.tb_context
         for group in ("arms", "legs"):
             if parsed[group] is not None:
                 self._ports[f"{group}_command"].FixValue(ctx, parsed[group])
         self._ports["pick"].FixValue(ctx, parsed["pick"])
         self._ports["release"].FixValue(ctx, parsed["release"])
-        status = ep.advance_to(ep.time + self.control_dt)
-        return status.done, status.success, self.observation()
 
     @property
     def status(self) -> EpisodeStatus:
@@ -144,30 +153,21 @@ class Env:
 
     def observation(self) -> dict[str, Any]:
         """The observation dictionary at the current time."""
-        ctx, ports, tb = self._episode.tb_context, self._ports, self.testbed
-        obs: dict[str, Any] = {}
-        obs.update(tb.scene.priors)
-        if "goal_center" in obs:  # the original platform's key for the goal prior
-            obs["goal"] = obs["goal_center"]
-        obs["agent"] = joint_and_body_obs(
-            ports["joint_state"].Eval(ctx), ports["body_state"].Eval(ctx)
-        )
-        pick_state = ports["pick_state"].Eval(ctx)
-        obs["pick"] = bool(pick_state.attached)
-        obs["pick_state"] = {"hand": pick_state.hand, "object": pick_state.object}
-        obs["time"] = ctx.get_time()
+        ctx, tb = self._episode.tb_context, self.testbed
+        values = {name: self._ports[name].Eval(ctx) for name in self.observation_ports()}
         X = tb.X_WB_start
-        obs["start_pos"] = X.translation().copy()
-        obs["start_orient"] = X.rotation().ToQuaternion().wxyz()
-        obs["language_instruction"] = ""
-        if "rgbd" in ports:
-            frame = ports["rgbd"].Eval(ctx)
-            obs["cam"] = {"rgb": frame.color, "distance_to_image_plane": frame.depth}
-        if tb.task is not None:
-            obs.update(ports["task_feedback"].Eval(ctx))
-            obs["language_instruction"] = ports["instruction"].Eval(ctx)
-            obs["score"] = float(ports["score"].Eval(ctx)[0])
-        return obs
+        return observation_from_ports(values, ctx.get_time(), tb.scene.priors,
+                                      X.translation(), X.rotation().ToQuaternion().wxyz())
+
+    def observation_ports(self) -> tuple[str, ...]:
+        """The testbed outputs an observation is made of (see
+        :func:`pr2_drake.observation.observation_from_ports`)."""
+        names = ("joint_state", "body_state", "pick_state")
+        if "rgbd" in self._ports:
+            names += ("rgbd",)
+        if self.testbed.task is not None:
+            names += ("task_feedback", "instruction", "score")
+        return names
 
     def report(self) -> dict[str, Any]:
         """The episode's result in the report.json layout."""

@@ -79,6 +79,34 @@ def joint_and_body_obs(joint_state: np.ndarray, body_state: np.ndarray) -> dict[
     }
 
 
+def observation_from_ports(values: dict[str, Any], time: float, priors: dict[str, Any],
+                           start_pos: np.ndarray, start_orient: np.ndarray) -> dict[str, Any]:
+    """The observation dictionary from the testbed's output values (``joint_state``,
+    ``body_state``, ``pick_state``; ``rgbd`` where there is a camera; ``task_feedback``,
+    ``instruction`` and ``score`` where there is a task), the time [s], the task's priors and
+    the start pose (position [m], quaternion w, x, y, z). :meth:`pr2_drake.env.Env.observation`
+    and the competition sandbox both build it here."""
+    obs: dict[str, Any] = dict(priors)
+    if "goal_center" in obs:  # the original platform's key for the goal prior
+        obs["goal"] = obs["goal_center"]
+    obs["agent"] = joint_and_body_obs(values["joint_state"], values["body_state"])
+    pick_state = values["pick_state"]
+    obs["pick"] = bool(pick_state.attached)
+    obs["pick_state"] = {"hand": pick_state.hand, "object": pick_state.object}
+    obs["time"] = time
+    obs["start_pos"] = np.array(start_pos, dtype=float)
+    obs["start_orient"] = np.array(start_orient, dtype=float)
+    obs["language_instruction"] = ""
+    if "rgbd" in values:
+        frame = values["rgbd"]
+        obs["cam"] = {"rgb": frame.color, "distance_to_image_plane": frame.depth}
+    if "task_feedback" in values:
+        obs.update(values["task_feedback"])
+        obs["language_instruction"] = values["instruction"]
+        obs["score"] = float(values["score"][0])
+    return obs
+
+
 def state_vectors_from_obs(obs: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
     """The inverse of :func:`joint_and_body_obs`: (joint_state, body_state) vectors."""
     js = obs["agent"]["joint_state"]

@@ -26,7 +26,7 @@ from pr2_drake.scene import Scene, StartPose
 
 # How an episode can end: the referee's verdicts, then the faults named by pr2_drake.episode.
 TERMINATIONS = ("completed", "fell", "left_region", "timeout", "diverged", "invalid_action",
-                "agent_error", "agent_exit")
+                "agent_error", "agent_timeout", "agent_memory", "agent_exit")
 FALL_HEIGHT = 0.35  # default: fallen when the base is less than this above the ground [m]
 
 

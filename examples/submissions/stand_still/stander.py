@@ -1,0 +1,16 @@
+"""A submission in the original platform's style: ``next_action(obs) -> action``.
+
+It stands: legs in effort mode (PD about a crouch plus gravity compensation from the built-in
+standing policy), arms held in position mode, at 200 Hz.
+"""
+
+from pr2_drake.agents.standing import StandingAgent
+
+
+class Stander(StandingAgent):
+    control_dt = 0.005  # [s]
+
+    def next_action(self, obs):
+        action = super().next_action(obs)
+        action["pick"] = None
+        return action

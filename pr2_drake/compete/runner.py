@@ -1,0 +1,250 @@
+"""``pr2-drake compete``: every submission x task x seed, each episode's agent sandboxed.
+
+A submissions folder holds one subfolder per submission, each with a ``submission.yaml``::
+
+    agent: my_solver:Solver            # one agent for every task, or
+    agents: {1: walker:Walker, 3: jumper:Jumper}   # one per task (ids or names); others: none
+    agent_params: {params: gains.yaml}  # optional keyword arguments of the constructors
+
+The subfolder is copied into the sandbox and put on its agent's import path (its cwd too).
+Results go to ``OUT/episodes.jsonl`` as each episode ends (so a killed run resumes where it
+stopped: finished episodes are not run again), then ``OUT/results.json`` and
+``OUT/results.csv`` (one row per episode).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import sys
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Iterable, TextIO
+
+from pr2_drake.compete.sandbox import SandboxLimits, isolation_note
+
+CSV_FIELDS = ("submission", "task", "seed", "score", "max_score", "termination", "items",
+              "sim_time", "wall_time", "agent_compute_mean_ms", "agent_compute_max_ms",
+              "step_time_mean_ms", "ipc_overhead_mean_us", "steps", "sandbox", "message")
+
+
+@dataclass
+class Submission:
+    """One submission: its folder and its agent per task (None = every task)."""
+
+    name: str
+    folder: Path
+    agents: dict[int | None, str] = field(default_factory=dict)
+    agent_params: dict[str, Any] = field(default_factory=dict)
+
+    def agent_for(self, task: int) -> str | None:
+        return self.agents.get(task, self.agents.get(None))
+
+
+def load_submissions(root: str | Path) -> list[Submission]:
+    """Every subfolder of ``root`` with a ``submission.yaml``, sorted by name.
+
+    Raises:
+        ValueError: ``root`` is not a folder, holds no submission, or a submission.yaml is
+            malformed (naming the file and the fault).
+    """
+    from pydrake.common.yaml import yaml_load
+
+    from pr2_drake.tasks import task_id
+
+    root = Path(root)
+    if not root.is_dir():
+        raise ValueError(f"submissions folder {root} does not exist")
+    subs = []
+    for folder in sorted(p for p in root.iterdir() if p.is_dir()):
+        file = folder / "submission.yaml"
+        if not file.is_file():
+            continue
+        try:
+            data = yaml_load(data=file.read_text()) or {}
+        except Exception as e:
+            raise ValueError(f"{file}: not valid YAML: {' '.join(str(e).split())}") from None
+        if not isinstance(data, dict) or not (("agent" in data) ^ ("agents" in data)):
+            raise ValueError(f"{file}: give either 'agent: module:Class' or 'agents: "
+                             f"{{task: module:Class, ...}}'")
+        unknown = set(data) - {"agent", "agents", "agent_params", "name"}
+        if unknown:
+            raise ValueError(f"{file}: unknown keys {sorted(unknown)}")
+        agents: dict[int | None, str] = {}
+        if "agent" in data:
+            agents[None] = _spec(data["agent"], file)
+        else:
+            if not isinstance(data["agents"], dict) or not data["agents"]:
+                raise ValueError(f"{file}: 'agents' must map task ids to module:Class")
+            for task, spec in data["agents"].items():
+                try:
+                    agents[task_id(task)] = _spec(spec, file)
+                except ValueError as e:
+                    raise ValueError(f"{file}: {e}") from None
+        params = data.get("agent_params") or {}
+        if not isinstance(params, dict):
+            raise ValueError(f"{file}: agent_params must be a mapping")
+        subs.append(Submission(str(data.get("name") or folder.name), folder.resolve(), agents,
+                               {str(k): v for k, v in params.items()}))
+    if not subs:
+        raise ValueError(f"no submission in {root}: each subfolder needs a submission.yaml")
+    names = [s.name for s in subs]
+    if len(set(names)) != len(names):
+        raise ValueError(f"{root}: two submissions have the same name: {names}")
+    return subs
+
+
+def _spec(spec: Any, file: Path) -> str:
+    if not isinstance(spec, str) or spec.count(":") != 1 or not all(spec.split(":")):
+        raise ValueError(f"{file}: an agent is 'module:Class', got {spec!r}")
+    return spec
+
+
+def parse_tasks(text: str) -> list[int]:
+    """``all`` or a comma list of task ids/names -> sorted task ids."""
+    from pr2_drake.tasks import list_tasks, task_id
+
+    if text.strip().lower() == "all":
+        return [i for i, _ in list_tasks()]
+    try:
+        return sorted({task_id(t.strip()) for t in text.split(",") if t.strip()})
+    except ValueError as e:
+        raise ValueError(f"--tasks: {e}") from None
+
+
+@dataclass
+class Job:
+    submission: Submission
+    task: int
+    seed: int
+    seconds: float | None
+    limits: SandboxLimits
+    hide: tuple[str, ...] = ()
+
+    @property
+    def key(self) -> tuple[str, int, int]:
+        return (self.submission.name, self.task, self.seed)
+
+
+def run_job(job: Job) -> dict[str, Any]:
+    """One sandboxed episode -> its results row (the report plus ``submission``)."""
+    from pr2_drake.compete.proxy import run_sandboxed_episode
+    from pr2_drake.scenario import Scenario
+
+    spec = job.submission.agent_for(job.task)
+    scenario = Scenario(task=job.task, seed=job.seed, agent=spec, seconds=job.seconds,
+                        agent_params=dict(job.submission.agent_params))
+    start = time.perf_counter()
+    try:
+        report = run_sandboxed_episode(scenario, submission=job.submission.folder,
+                                       limits=job.limits, hide=tuple(map(Path, job.hide)))
+    except ValueError as e:  # the scenario could not start (a bad agent_params, ...)
+        from pr2_drake.tasks import get_task
+
+        report = {"task": job.task, "seed": job.seed, "agent": spec, "score": 0.0,
+                  "max_score": float(get_task(job.task).spec.max_score), "success": False,
+                  "termination": "agent_error", "items": [], "sim_time": 0.0,
+                  "wall_time": round(time.perf_counter() - start, 3),
+                  "message": " ".join(str(e).split())}
+    return {"submission": job.submission.name, **report}
+
+
+def read_done(path: Path) -> dict[tuple[str, int, int], dict[str, Any]]:
+    """The rows already in ``episodes.jsonl`` (a line cut off by a kill is skipped)."""
+    done = {}
+    if path.is_file():
+        for line in path.read_text().splitlines():
+            try:
+                row = json.loads(line)
+                done[(row["submission"], int(row["task"]), int(row["seed"]))] = row
+            except (ValueError, KeyError, TypeError):
+                continue
+    return done
+
+
+def run_competition(root: str | Path, tasks: Iterable[int], seeds: Iterable[int],
+                    out: str | Path, *, jobs: int = 1, seconds: float | None = None,
+                    limits: SandboxLimits | None = None,
+                    progress: TextIO | None = sys.stderr) -> list[dict[str, Any]]:
+    """Run (or resume) a competition; returns all rows and writes the results files."""
+    limits = limits or SandboxLimits()
+    subs = load_submissions(root)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    log = out / "episodes.jsonl"
+    done = read_done(log)
+    hide = tuple(str(p.resolve()) for p in (Path(root), out))
+    todo = [Job(s, t, seed, seconds, limits, hide) for s in subs for t in tasks for seed in seeds
+            if s.agent_for(t) is not None]
+    todo = [j for j in todo if j.key not in done]
+    say = (lambda text: print(text, file=progress, flush=True)) if progress else (lambda _: 0)
+    say(isolation_note(limits))
+    say(f"{len(subs)} submissions, tasks {list(tasks)}, seeds {list(seeds)}: "
+        f"{len(done)} episodes done before, {len(todo)} to run with {jobs} job(s)")
+    start = time.perf_counter()
+    with open(log, "a") as f:
+        for i, row in enumerate(_results(todo, jobs), 1):
+            f.write(json.dumps(row) + "\n")
+            f.flush()
+            os.fsync(f.fileno())
+            done[(row["submission"], int(row["task"]), int(row["seed"]))] = row
+            say(f"  {row['submission']:<20} task {row['task']} seed {row['seed']:>3}: score "
+                f"{row['score']:>4g}/{row['max_score']:g} {row['termination']:<14} "
+                f"t = {row['sim_time']:6.2f} s  ({i}/{len(todo)}, "
+                f"{time.perf_counter() - start:.0f} s)")
+    rows = sorted(done.values(), key=lambda r: (r["submission"], r["task"], r["seed"]))
+    write_results(rows, out, meta={"submissions": [s.name for s in subs], "tasks": list(tasks),
+                                   "seeds": list(seeds), "seconds": seconds,
+                                   "limits": vars(limits), "isolation": isolation_note(limits)})
+    return rows
+
+
+def _results(todo: list[Job], jobs: int):
+    if jobs <= 1 or len(todo) <= 1:
+        yield from map(run_job, todo)
+        return
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn")) as pool:
+        futures = [pool.submit(run_job, j) for j in todo]
+        for fut in as_completed(futures):
+            yield fut.result()
+
+
+def csv_row(r: dict[str, Any]) -> dict[str, Any]:
+    def ms(key, scale=1e3):
+        v = r.get(key)
+        return "" if v is None else round(v * scale, 3)
+
+    return {
+        "submission": r["submission"], "task": r["task"], "seed": r["seed"],
+        "score": r["score"], "max_score": r["max_score"], "termination": r["termination"],
+        "items": ";".join(f"{e['item']}@{e['time']:.2f}" for e in r.get("items", [])),
+        "sim_time": r.get("sim_time"), "wall_time": r.get("wall_time"),
+        "agent_compute_mean_ms": ms("agent_compute_mean"),
+        "agent_compute_max_ms": ms("agent_compute_max"),
+        "step_time_mean_ms": ms("step_time_mean"),
+        "ipc_overhead_mean_us": ms("ipc_overhead_mean", 1e6),
+        "steps": r.get("steps", 0), "sandbox": r.get("sandbox", ""),
+        "message": r.get("message", ""),
+    }
+
+
+def write_results(rows: list[dict[str, Any]], out: Path, meta: dict[str, Any]) -> None:
+    """``results.json`` ({competition, episodes}) and ``results.csv`` (one row per episode)."""
+    tmp = out / "results.json.tmp"
+    tmp.write_text(json.dumps({"competition": meta, "episodes": rows}, indent=1))
+    tmp.replace(out / "results.json")
+    with open(out / "results.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=CSV_FIELDS)
+        w.writeheader()
+        for r in rows:
+            w.writerow(csv_row(r))
+
+
+def with_limits(limits: SandboxLimits, **changes) -> SandboxLimits:
+    """``limits`` with the given fields changed (None: unchanged)."""
+    return replace(limits, **{k: v for k, v in changes.items() if v is not None})
