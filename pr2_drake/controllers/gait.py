@@ -239,6 +239,8 @@ class GaitPlanner:
         z_ref = ground
         if g.com_height_over_stance and self.phase == Phase.SINGLE:
             z_ref = float(self.footholds[self.stance][2])  # over the stance sole (stairs)
+        if g.com_height_step_down:
+            z_ref = min(z_ref, self._next_foothold_z())  # step-down: lower the CoM first
         z_goal = z_ref + (g.stand_com_height if self.phase == Phase.STAND else g.com_height)
         if self.z_target is None:
             self.z_target = float(com[2])
@@ -302,6 +304,15 @@ class GaitPlanner:
 
     def _moving(self) -> bool:
         return self.footsteps.keep_walking(self.command, self.footholds)
+
+    def _next_foothold_z(self) -> float:
+        """Height [m] of where the swing sole lands next: the swing target in single support,
+        the planned next foothold in the double support before it (inf: none)."""
+        if self.phase == Phase.SINGLE and self.swing is not None:
+            return float(self.swing.target[2])
+        if self.phase in (Phase.START, Phase.DOUBLE) and self.swing_plan is not None:
+            return float(self.swing_plan[2])
+        return np.inf
 
     def _ground_z(self) -> float:
         zs = [f[2] for f in self.footholds if f is not None]

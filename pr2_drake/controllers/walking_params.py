@@ -36,6 +36,11 @@ class GaitParams:
     # set, above the stance sole in single support (stairs: the stance leg on the upper tread
     # is not left crouched while the other sole swings up from the lower one).
     com_height_over_stance: bool = False
+    # Step-downs (stairs): when set, the CoM height target is com_height above the lower of
+    # the stance sole and the swing target (single support) or the next planned foothold
+    # (double support before it), so that the CoM descends before the swing sole has to reach
+    # the lower tread (the swing knee does not straighten). Level steps are unchanged.
+    com_height_step_down: bool = False
     swing_clear_lift: float = 0.3
     swing_clear_lower: float = 0.3
     swing_lift_fraction: float = 0.0  # horizontal swing motion starts/ends this much of the
