@@ -41,6 +41,11 @@ class GaitParams:
     # (double support before it), so that the CoM descends before the swing sole has to reach
     # the lower tread (the swing knee does not straighten). Level steps are unchanged.
     com_height_step_down: bool = False
+    # [m] > 0 (stairs): knee-limit-aware CoM height. The CoM height target stays within this
+    # distance of every supporting sole, counting the CoM's offset from the sole along the
+    # heading: z <= z_sole + sqrt(com_reach^2 - dx^2). A rear sole still on the lower tread
+    # after a step-up then keeps the CoM low until it lifts (its knee stays bent). 0 = off.
+    com_reach: float = 0.0
     swing_clear_lift: float = 0.3
     swing_clear_lower: float = 0.3
     swing_lift_fraction: float = 0.0  # horizontal swing motion starts/ends this much of the
