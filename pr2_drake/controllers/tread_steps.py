@@ -45,6 +45,8 @@ class TreadPlannerParams:
     clearance: float = 0.05  # swing soles clear the highest ground on their way by this
     max_step_height: float = 0.15  # taller risers are refused
     min_progress: float = 0.03  # a step moved back must still advance this much
+    approach_margin: float = 0.03  # the sole stopping short of a riser keeps its toe (heel,
+    # going down) this far from the edge: room for the toe to rise before it moves on
 
     @staticmethod
     def load(path: str = "controllers/tread_planner.yaml") -> "TreadPlannerParams":
@@ -130,7 +132,8 @@ class TreadFootstepPlanner(FootstepPlanner):
         if crossing and not joining:
             # First up to the edge: the sole stops short of it (heel and toe plus the margin on
             # the stance sole's level) when the stance sole is farther back than that.
-            half = 0.5 * t.foot_length + self.params.edge_margin
+            half = 0.5 * t.foot_length + max(self.params.edge_margin,
+                                             self.params.approach_margin)
             edges = t.edges_along(float(stance[0]), float(stance[1]), float(target[3]), 0.0,
                                   half + self.gait.max_step_forward + 0.1)
             if edges:
@@ -218,6 +221,9 @@ class TreadFootstepPlanner(FootstepPlanner):
                 d += (edges[0] - half) if direction < 0 else (edges[-1] + half)
                 d += direction * 1e-3
             z = level(d)
+            if z is not None and d < 0.0:  # stopped short of an edge ahead: approach margin
+                d -= max(p.approach_margin - p.edge_margin, 0.0)
+                z = level(d)
             if z is not None:
                 options.append((d, z))
         reach = self.gait.max_step_forward + 0.05
