@@ -85,6 +85,25 @@ def test_footholds_land_on_treads_and_step_to_over_each_riser(height):
     assert levels == {round(k * height, 3) for k in range(3)}  # up both steps and down again
 
 
+def test_a_sole_that_changes_level_next_starts_its_swing_clear_of_the_riser():
+    """The soles stopping short of a riser keep approach_margin from it (the rear toe rises
+    before it moves on instead of catching the nosing)."""
+    terrain = stairs_terrain(1.0, 2, 0.12, 0.40, 2.0, floor_length=1.2, down=True)
+    planner = TreadFootstepPlanner(PARAMS.gait, 0.01, terrain)
+    margin = planner.params.approach_margin
+    assert margin > planner.params.edge_margin
+    plan = _plan(terrain, steps=30)
+    checked = 0
+    for k, (side, start, step) in enumerate(plan):
+        later = [s for sd, _, s in plan[k + 1:] if sd == side]
+        if not later or abs(later[0][2] - step[2]) < 1e-6:
+            continue  # this sole's next step stays on its level
+        ahead = terrain.edges_along(step[0], step[1], 0.0, 0.0, 0.5)
+        assert ahead[0] - HALF_FOOT >= margin - 0.006  # toe to edge (to the edge sampling)
+        checked += 1
+    assert checked >= 8  # both soles, at each of the four risers
+
+
 def test_the_swing_over_a_riser_clears_it_with_toe_and_heel_and_lands_flat():
     terrain = stairs_terrain(1.0, 1, 0.10, 0.40, 2.0)
     start = np.array([1.0 - HALF_FOOT - 0.03, 0.11, 0.0, 0.0])
@@ -115,3 +134,19 @@ def test_one_step_up_ends_with_both_soles_on_the_tread_without_a_fall():
             assert point[0] > 0.6 + 0.01  # past the riser
             assert point[2] == pytest.approx(0.10, abs=0.01)  # on the tread
     assert int(sim.status()[3]) == 0  # standing
+
+
+def test_one_step_down_keeps_the_knees_bent_and_lands_both_soles_on_the_floor():
+    """0.12 m down: the CoM descends before the swing sole reaches the lower floor
+    (com_height_step_down), so no knee straightens to its limit."""
+    terrain = stairs_terrain(-1.0, 1, 0.12, 0.40, 2.0, floor_length=1.2)  # edge at x = 0.6
+    sim = StairsSim(terrain)
+    knees = []
+    joints = [sim.plant.GetJointByName(n) for n in ("l_knee", "r_knee")]
+    ok = sim.walk(0.25, x_end=1.3, timeout=20.0, check_every=0.02,
+                  log=lambda s: knees.append([j.get_angle(s.plant_context) for j in joints]))
+    assert ok, sim.fall
+    assert max(max(k) for k in knees) < PARAMS.qp.knee_max - 0.05  # bent all the way
+    for side in (0, 1):
+        for point in sim.sole_points(side):
+            assert point[0] > 0.6 + 0.01 and point[2] == pytest.approx(0.0, abs=0.01)

@@ -199,6 +199,9 @@ class TreadFootstepPlanner(FootstepPlanner):
         t = self.terrain
         p = self.params
         half = 0.5 * t.foot_length + p.edge_margin
+        # In front of the toe the margin is approach_margin: a sole that stops short of an
+        # edge leaves its toe room to rise before it moves on (no catch on the nosing).
+        front = 0.5 * t.foot_length + max(p.edge_margin, p.approach_margin)
         yaw = float(target[3])
         c, s = math.cos(yaw), math.sin(yaw)
         x, y = float(target[0]), float(target[1])
@@ -208,7 +211,7 @@ class TreadFootstepPlanner(FootstepPlanner):
             return c * (x + c * d - stance[0]) + s * (y + s * d - stance[1])
 
         def level(d: float) -> float | None:  # the height under the sole moved by d, or None
-            z = t.heights_along(x + c * d, y + s * d, yaw, -half, half)
+            z = t.heights_along(x + c * d, y + s * d, yaw, -half, front)
             return float(z[0]) if z.max() - z.min() < LEVEL_TOLERANCE else None
 
         options = []
@@ -217,13 +220,10 @@ class TreadFootstepPlanner(FootstepPlanner):
             for _ in range(6):  # past up to a few short treads
                 if level(d) is not None:
                     break
-                edges = t.edges_along(x + c * d, y + s * d, yaw, -half, half)
-                d += (edges[0] - half) if direction < 0 else (edges[-1] + half)
+                edges = t.edges_along(x + c * d, y + s * d, yaw, -half, front)
+                d += (edges[0] - front) if direction < 0 else (edges[-1] + half)
                 d += direction * 1e-3
             z = level(d)
-            if z is not None and d < 0.0:  # stopped short of an edge ahead: approach margin
-                d -= max(p.approach_margin - p.edge_margin, 0.0)
-                z = level(d)
             if z is not None:
                 options.append((d, z))
         reach = self.gait.max_step_forward + 0.05
