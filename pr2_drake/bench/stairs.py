@@ -317,13 +317,17 @@ def starts(repeats: int, seed: int = 0) -> list[StartPose]:
 
 
 def run_stairs(height: float, count: int, start: StartPose, speed: float = 0.25,
-               meshcat=None, lane_gain: float = LANE_GAIN) -> tuple[bool, float, float,
-                                                                     Fall | None]:
+               meshcat=None, lane_gain: float = LANE_GAIN, overrides: str | None = None
+               ) -> tuple[bool, float, float, Fall | None]:
     """Up then down one staircase: (no fall, simulated time [s], real-time factor, where and
-    why it failed or None)."""
+    why it failed or None). ``overrides``: a YAML file of walking parameters applied after
+    controllers/walking_stairs.yaml (tuning)."""
     terrain = stairs_terrain(START_X, count, height, TREAD, 2.0, floor_length=FLOOR_LENGTH,
                              down=True)
-    sim = StairsSim(terrain, start, meshcat=meshcat)
+    params = WalkingParams.load().with_overrides(WALKING_OVERRIDES)
+    if overrides:
+        params = params.with_overrides(overrides)
+    sim = StairsSim(terrain, start, params=params, meshcat=meshcat)
     x_end = START_X + 2 * count * TREAD + FLOOR_LENGTH - TREAD + 0.4
     wall = time.perf_counter()
     ok = sim.walk(speed, x_end, timeout=20.0 + 8.0 * count, lane_gain=lane_gain)
@@ -339,6 +343,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--counts", type=int, nargs="+", default=[2, 4])
     ap.add_argument("--lane-gain", type=float, default=LANE_GAIN,
                     help="[1/s] sideways command per m of drift from the start's y (0: none)")
+    ap.add_argument("--overrides", default=None,
+                    help="YAML of walking parameters applied after walking_stairs.yaml")
     args = ap.parse_args(argv)
     if args.repeats < 1:
         ap.error("--repeats must be at least 1")
@@ -352,7 +358,8 @@ def main(argv: list[str] | None = None) -> int:
         for n in counts:
             results = []
             for k, s in enumerate(starts(repeats)):
-                results.append(run_stairs(h, n, s, lane_gain=args.lane_gain))
+                results.append(run_stairs(h, n, s, lane_gain=args.lane_gain,
+                                          overrides=args.overrides))
                 if results[-1][3] is not None:
                     falls.append(f"  {h:.2f} m x {n}, repeat {k} (start x {s.x:+.3f} m, "
                                  f"y {s.y:+.3f} m, yaw {math.degrees(s.yaw):+.1f} deg): "
