@@ -15,6 +15,26 @@ A riser taller than ``max_step_height`` is refused: the constructor raises Value
 the terrain and the riser (:meth:`PatchTerrain.risers`); at run time a step that would need one
 (terrain not described by its patches) stays in front of the edge, and the robot marks time.
 
+Every sole keeps ``edge_margin`` behind its heel and ``approach_margin`` (more) in front of
+its toe clear of an edge: the sole that stops short of a riser (up or down) leaves its toe room
+to rise before it moves on, so that it does not catch the nosing.
+
+The CoM height on stairs (controllers/walking_stairs.yaml, :class:`pr2_drake.controllers.gait.
+GaitPlanner`): the LIPM and the DCM stay horizontal, with one constant omega =
+sqrt(g / com_height) (com_height 0.54 m above the stance soles); footholds enter the DCM laws by
+their xy only. The height is a separate reference tracked by the QP's CoM-z task: com_height
+above the mean foothold height in double support, above the stance sole in single support
+(``com_height_over_stance``), above the lower tread before and during a step-down
+(``com_height_step_down``: the CoM descends before the swing sole has to reach down, so the
+swing knee does not straighten), at most ``com_reach`` from every supporting sole counting the
+CoM's offset along the heading (knee-limit-aware: after a step-up the rear sole, still on the
+lower tread, keeps its knee bent), moved at ``height_rate`` (0.2 m/s). The horizontal LIPM law
+goes to the QP as a CoM acceleration, not as a CoP: the QP finds contact forces for it, so the
+vertical motion changes the CoP those forces need ((g + zdd) / (z - z_cop)) rather than the
+horizontal motion. What the constant omega gets wrong while the height changes is a model
+error that the feedback on the measured DCM removes: the ankle term in single support, the
+step adjustment of the swing target every tick, and the weight shift in double support.
+
 Parameters: controllers/tread_planner.yaml. Units m, rad; frames W, sole S (x forward).
 
 (No ``from __future__ import annotations``: ``yaml_load_typed`` reads the field types.)
