@@ -15,7 +15,11 @@ from pr2_drake.controllers.terrain_model import (
     stairs_from_priors,
     stairs_terrain,
 )
-from pr2_drake.controllers.tread_steps import TreadFootstepPlanner
+from pr2_drake.controllers.tread_steps import (
+    BESIDE,
+    TreadFootstepPlanner,
+    TreadPlannerParams,
+)
 from pr2_drake.controllers.walking_params import WalkingParams
 from tests._locomotion_sim import scene_geometry
 
@@ -56,8 +60,8 @@ def test_a_riser_taller_than_the_planner_limit_is_refused_naming_the_terrain():
         TreadFootstepPlanner(PARAMS.gait, 0.01, tall)
 
 
-def _plan(terrain, x0=0.55, steps=24, speed=0.25):
-    planner = TreadFootstepPlanner(PARAMS.gait, 0.01, terrain)
+def _plan(terrain, x0=0.55, steps=24, speed=0.25, params=None):
+    planner = TreadFootstepPlanner(PARAMS.gait, 0.01, terrain, params)
     feet = [np.array([x0, 0.11, 0.0, 0.0]), np.array([x0, -0.11, 0.0, 0.0])]
     side = 1  # right foot first
     out = []
@@ -75,9 +79,10 @@ def _plan(terrain, x0=0.55, steps=24, speed=0.25):
 def test_footholds_land_on_treads_and_step_to_over_each_riser(height):
     terrain = stairs_terrain(1.0, 2, height, 0.40, 2.0, floor_length=1.2, down=True)
     params = TreadFootstepPlanner(PARAMS.gait, 0.01, terrain).params
-    # One riser stride: from the toe approach_margin short of the edge to the heel edge_margin
+    # One riser stride: from the toe approach_margin short of the edge (a sole beside the
+    # stance one: up to BESIDE behind it) to the heel edge_margin
     # past it.
-    riser_stride = 2 * HALF_FOOT + params.approach_margin + params.edge_margin + 0.01
+    riser_stride = 2 * HALF_FOOT + params.approach_margin + params.edge_margin + BESIDE
     levels = set()
     for side, start, step in _plan(terrain):
         assert terrain.on_one_level(step)  # heel and toe (plus margin) on one tread
@@ -93,10 +98,9 @@ def test_a_sole_that_changes_level_next_starts_its_swing_clear_of_the_riser():
     """The soles stopping short of a riser keep approach_margin from it (the rear toe rises
     before it moves on instead of catching the nosing)."""
     terrain = stairs_terrain(1.0, 2, 0.12, 0.40, 2.0, floor_length=1.2, down=True)
-    planner = TreadFootstepPlanner(PARAMS.gait, 0.01, terrain)
-    margin = planner.params.approach_margin
-    assert margin > planner.params.edge_margin
-    plan = _plan(terrain, steps=30)
+    params = TreadPlannerParams.load()
+    params.approach_margin = margin = params.edge_margin + 0.04
+    plan = _plan(terrain, steps=30, params=params)
     checked = 0
     for k, (side, start, step) in enumerate(plan):
         later = [s for sd, _, s in plan[k + 1:] if sd == side]
