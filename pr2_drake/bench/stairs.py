@@ -11,9 +11,24 @@ walks with the walking controller, :class:`pr2_drake.controllers.tread_steps.
 TreadFootstepPlanner` and the staircase's :class:`PatchTerrain` (controllers/walking_stairs.yaml)
 at a constant forward command with heading hold, until its base is past the last step.
 
+The walk holds the start's y (``--lane-gain``, 0.8 1/s as StepsButtonAgent; 0 = off): without
+it the robot drifts 0.1-0.2 m sideways at each riser (the pelvis rolls while the swing leg
+lifts fast over the riser) and walks off the side of 2 m wide stairs. ``--overrides`` applies a
+YAML of walking parameters after walking_stairs.yaml (tuning).
+
 Prints one row per (riser, count): falls out of the repeats, mean simulated time to cross, the
-wall-clock real-time factor while climbing; then the highest riser climbed up and down without
-a fall in all repeats. :class:`StairsSim` (the closed loop on a staircase) is also used by
+wall-clock real-time factor while climbing; for each fall where it happened (going up / top
+floor / going down, which riser, sim time) and the first sign of trouble in the last second
+(:meth:`StairsSim.diagnose`: a knee at its limit, a swing toe caught on a riser's nosing, heel
+or toe off an edge, a sole off the side, the DCM outside the support); then the highest riser
+climbed up and down without a fall in all repeats.
+
+What limits step height now: the planner refuses risers over 0.15 m
+(controllers/tread_planner.yaml ``max_step_height``). Below that, measured with 5 repeats
+(under load): 0.10 m and 0.12 m x 2 steps without a fall; 0.12 m x 4 steps 2/5 falls, both
+going up: the stance knee reaching its limit while the swing sole lifts fast over the riser
+(the CoM overshoots its height target by ~5 cm), and the rear toe pitching down at lift-off and
+catching the nosing. :class:`StairsSim` (the closed loop on a staircase) is also used by
 tests/test_stairs.py and notebooks/05_stairs.ipynb.
 """
 
