@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pr2_drake.bench.stairs import StairsSim
+from pr2_drake.bench.stairs import LANE_GAIN, StairsSim
 from pr2_drake.controllers.swing import SwingTrajectory
 from pr2_drake.controllers.terrain_model import (
     PatchTerrain,
@@ -149,7 +149,7 @@ def test_one_step_down_of_0_12_m_lands_both_soles_on_the_floor_without_a_fall():
     com_height_step_down)."""
     terrain = stairs_terrain(-1.0, 1, 0.12, 0.40, 2.0, floor_length=1.2)  # edge at x = 0.6
     sim = StairsSim(terrain)
-    assert sim.walk(0.25, x_end=1.3, timeout=20.0), sim.fall
+    assert sim.walk(0.25, x_end=1.3, timeout=20.0, lane_gain=LANE_GAIN), sim.fall
     for side in (0, 1):
         for point in sim.sole_points(side):
             assert point[0] > 0.6 + 0.01 and point[2] == pytest.approx(0.0, abs=0.01)

@@ -24,11 +24,12 @@ or toe off an edge, a sole off the side, the DCM outside the support); then the 
 climbed up and down without a fall in all repeats.
 
 What limits step height now: the planner refuses risers over 0.15 m
-(controllers/tread_planner.yaml ``max_step_height``). Below that, measured with 5 repeats
-(under load): 0.10 m and 0.12 m x 2 steps without a fall; 0.12 m x 4 steps 2/5 falls, both
-going up: the stance knee reaching its limit while the swing sole lifts fast over the riser
-(the CoM overshoots its height target by ~5 cm), and the rear toe pitching down at lift-off and
-catching the nosing. :class:`StairsSim` (the closed loop on a staircase) is also used by
+(controllers/tread_planner.yaml ``max_step_height``). Below that, measured with 5 repeats:
+0.10 m and 0.12 m, 2 and 4 steps, up and down without a fall. With the CoM-height weight at
+300 (before) 0.12 m x 4 fell 2/5 going up: the stance knee reached its limit while the swing
+sole lifted fast over the riser (the CoM overshot its height target by ~5 cm), or the rear toe
+pitched down at lift-off and caught the nosing; 0.15 m risers (5/5 falls before) are not
+measured again. :class:`StairsSim` (the closed loop on a staircase) is also used by
 tests/test_stairs.py and notebooks/05_stairs.ipynb.
 """
 
