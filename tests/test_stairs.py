@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pr2_drake.bench.stairs import StairsSim
+from pr2_drake.bench.stairs import LANE_GAIN, StairsSim
 from pr2_drake.controllers.swing import SwingTrajectory
 from pr2_drake.controllers.terrain_model import (
     PatchTerrain,
@@ -15,7 +15,11 @@ from pr2_drake.controllers.terrain_model import (
     stairs_from_priors,
     stairs_terrain,
 )
-from pr2_drake.controllers.tread_steps import TreadFootstepPlanner
+from pr2_drake.controllers.tread_steps import (
+    BESIDE,
+    TreadFootstepPlanner,
+    TreadPlannerParams,
+)
 from pr2_drake.controllers.walking_params import WalkingParams
 from tests._locomotion_sim import scene_geometry
 
@@ -56,8 +60,8 @@ def test_a_riser_taller_than_the_planner_limit_is_refused_naming_the_terrain():
         TreadFootstepPlanner(PARAMS.gait, 0.01, tall)
 
 
-def _plan(terrain, x0=0.55, steps=24, speed=0.25):
-    planner = TreadFootstepPlanner(PARAMS.gait, 0.01, terrain)
+def _plan(terrain, x0=0.55, steps=24, speed=0.25, params=None):
+    planner = TreadFootstepPlanner(PARAMS.gait, 0.01, terrain, params)
     feet = [np.array([x0, 0.11, 0.0, 0.0]), np.array([x0, -0.11, 0.0, 0.0])]
     side = 1  # right foot first
     out = []
@@ -74,15 +78,38 @@ def _plan(terrain, x0=0.55, steps=24, speed=0.25):
 @pytest.mark.parametrize("height", [0.05, 0.10, 0.15])
 def test_footholds_land_on_treads_and_step_to_over_each_riser(height):
     terrain = stairs_terrain(1.0, 2, height, 0.40, 2.0, floor_length=1.2, down=True)
+    params = TreadFootstepPlanner(PARAMS.gait, 0.01, terrain).params
+    # One riser stride: from the toe approach_margin short of the edge (a sole beside the
+    # stance one: up to BESIDE behind it) to the heel edge_margin
+    # past it.
+    riser_stride = 2 * HALF_FOOT + params.approach_margin + params.edge_margin + BESIDE
     levels = set()
     for side, start, step in _plan(terrain):
         assert terrain.on_one_level(step)  # heel and toe (plus margin) on one tread
         assert step[2] == pytest.approx(terrain.height(step[0], step[1]))
         if abs(step[2] - start[2]) > 1e-6:  # a step up or down
             assert abs(step[2] - start[2]) == pytest.approx(height)
-            assert abs(step[0] - start[0]) < 0.25  # step-to: one riser stride, no more
+            assert abs(step[0] - start[0]) < riser_stride  # step-to: one riser stride
         levels.add(round(step[2], 3))
     assert levels == {round(k * height, 3) for k in range(3)}  # up both steps and down again
+
+
+def test_a_sole_that_changes_level_next_starts_its_swing_clear_of_the_riser():
+    """The soles stopping short of a riser keep approach_margin from it (the rear toe rises
+    before it moves on instead of catching the nosing)."""
+    terrain = stairs_terrain(1.0, 2, 0.12, 0.40, 2.0, floor_length=1.2, down=True)
+    params = TreadPlannerParams.load()
+    params.approach_margin = margin = params.edge_margin + 0.04
+    plan = _plan(terrain, steps=30, params=params)
+    checked = 0
+    for k, (side, start, step) in enumerate(plan):
+        later = [s for sd, _, s in plan[k + 1:] if sd == side]
+        if not later or abs(later[0][2] - step[2]) < 1e-6:
+            continue  # this sole's next step stays on its level
+        ahead = terrain.edges_along(step[0], step[1], 0.0, 0.0, 0.5)
+        assert ahead[0] - HALF_FOOT >= margin - 0.006  # toe to edge (to the edge sampling)
+        checked += 1
+    assert checked >= 8  # both soles, at each of the four risers
 
 
 def test_the_swing_over_a_riser_clears_it_with_toe_and_heel_and_lands_flat():
@@ -114,4 +141,16 @@ def test_one_step_up_ends_with_both_soles_on_the_tread_without_a_fall():
         for point in (heel, toe):
             assert point[0] > 0.6 + 0.01  # past the riser
             assert point[2] == pytest.approx(0.10, abs=0.01)  # on the tread
+    assert int(sim.status()[3]) == 0  # standing
+
+
+def test_one_step_down_of_0_12_m_lands_both_soles_on_the_floor_without_a_fall():
+    """0.12 m down (the CoM descends before the swing sole reaches the lower floor:
+    com_height_step_down)."""
+    terrain = stairs_terrain(-1.0, 1, 0.12, 0.40, 2.0, floor_length=1.2)  # edge at x = 0.6
+    sim = StairsSim(terrain)
+    assert sim.walk(0.25, x_end=1.3, timeout=20.0, lane_gain=LANE_GAIN), sim.fall
+    for side in (0, 1):
+        for point in sim.sole_points(side):
+            assert point[0] > 0.6 + 0.01 and point[2] == pytest.approx(0.0, abs=0.01)
     assert int(sim.status()[3]) == 0  # standing

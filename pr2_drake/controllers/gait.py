@@ -240,7 +240,11 @@ class GaitPlanner:
         z_ref = ground
         if g.com_height_over_stance and self.phase == Phase.SINGLE:
             z_ref = float(self.footholds[self.stance][2])  # over the stance sole (stairs)
+        if g.com_height_step_down:
+            z_ref = min(z_ref, self._next_foothold_z())  # step-down: lower the CoM first
         z_goal = z_ref + (g.stand_com_height if self.phase == Phase.STAND else g.com_height)
+        if g.com_reach > 0.0:
+            z_goal = min(z_goal, self._reach_cap(com, g.com_reach))
         if self.z_target is None:
             self.z_target = float(com[2])
         dz = g.height_rate * dt
@@ -318,6 +322,28 @@ class GaitPlanner:
 
     def _moving(self) -> bool:
         return self.footsteps.keep_walking(self.command, self.footholds)
+
+    def _reach_cap(self, com, reach: float) -> float:
+        """Highest CoM height [m] within ``reach`` of every supporting sole, counting the
+        CoM's offset from it along the heading (``com_reach``)."""
+        c, s = np.cos(self.heading), np.sin(self.heading)
+        cap = np.inf
+        for side in (0, 1):
+            f = self.footholds[side]
+            if f is None or (self.phase == Phase.SINGLE and side != self.stance):
+                continue
+            dx = min(abs(c * (com[0] - f[0]) + s * (com[1] - f[1])), 0.9 * reach)
+            cap = min(cap, float(f[2]) + float(np.sqrt(reach * reach - dx * dx)))
+        return cap
+
+    def _next_foothold_z(self) -> float:
+        """Height [m] of where the swing sole lands next: the swing target in single support,
+        the planned next foothold in the double support before it (inf: none)."""
+        if self.phase == Phase.SINGLE and self.swing is not None:
+            return float(self.swing.target[2])
+        if self.phase in (Phase.START, Phase.DOUBLE) and self.swing_plan is not None:
+            return float(self.swing_plan[2])
+        return np.inf
 
     def _ground_z(self) -> float:
         zs = [f[2] for f in self.footholds if f is not None]

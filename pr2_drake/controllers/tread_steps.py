@@ -15,6 +15,27 @@ A riser taller than ``max_step_height`` is refused: the constructor raises Value
 the terrain and the riser (:meth:`PatchTerrain.risers`); at run time a step that would need one
 (terrain not described by its patches) stays in front of the edge, and the robot marks time.
 
+Every sole keeps ``edge_margin`` behind its heel and ``approach_margin`` in front of its toe
+clear of an edge. A larger ``approach_margin`` leaves the toe of the sole that stops short of a
+riser room to rise before it moves on; it also lengthens the stride over the riser, and 0.07 m
+fell more often at 0.12 m risers than 0.03 m (the value in tread_planner.yaml, = edge_margin).
+
+The CoM height on stairs (controllers/walking_stairs.yaml, :class:`pr2_drake.controllers.gait.
+GaitPlanner`): the LIPM and the DCM stay horizontal, with one constant omega =
+sqrt(g / com_height) (com_height 0.54 m above the stance soles); footholds enter the DCM laws by
+their xy only. The height is a separate reference tracked by the QP's CoM-z task: com_height
+above the mean foothold height in double support, above the stance sole in single support
+(``com_height_over_stance``), above the lower tread before and during a step-down
+(``com_height_step_down``: the CoM descends before the swing sole has to reach down, so the
+swing knee does not straighten), at most ``com_reach`` from every supporting sole counting the
+CoM's offset along the heading (knee-limit-aware: after a step-up the rear sole, still on the
+lower tread, keeps its knee bent), moved at ``height_rate`` (0.2 m/s). The horizontal LIPM law
+goes to the QP as a CoM acceleration, not as a CoP: the QP finds contact forces for it, so the
+vertical motion changes the CoP those forces need ((g + zdd) / (z - z_cop)) rather than the
+horizontal motion. What the constant omega gets wrong while the height changes is a model
+error that the feedback on the measured DCM corrects: the ankle term in single support, the
+step adjustment of the swing target every tick, and the weight shift in double support.
+
 Parameters: controllers/tread_planner.yaml. Units m, rad; frames W, sole S (x forward).
 
 (No ``from __future__ import annotations``: ``yaml_load_typed`` reads the field types.)
@@ -45,6 +66,8 @@ class TreadPlannerParams:
     clearance: float = 0.05  # swing soles clear the highest ground on their way by this
     max_step_height: float = 0.15  # taller risers are refused
     min_progress: float = 0.03  # a step moved back must still advance this much
+    approach_margin: float = 0.03  # the sole stopping short of a riser keeps its toe (heel,
+    # going down) this far from the edge: room for the toe to rise before it moves on
 
     @staticmethod
     def load(path: str = "controllers/tread_planner.yaml") -> "TreadPlannerParams":
@@ -130,7 +153,8 @@ class TreadFootstepPlanner(FootstepPlanner):
         if crossing and not joining:
             # First up to the edge: the sole stops short of it (heel and toe plus the margin on
             # the stance sole's level) when the stance sole is farther back than that.
-            half = 0.5 * t.foot_length + self.params.edge_margin
+            half = 0.5 * t.foot_length + max(self.params.edge_margin,
+                                             self.params.approach_margin)
             edges = t.edges_along(float(stance[0]), float(stance[1]), float(target[3]), 0.0,
                                   half + self.gait.max_step_forward + 0.1)
             if edges:
@@ -196,6 +220,9 @@ class TreadFootstepPlanner(FootstepPlanner):
         t = self.terrain
         p = self.params
         half = 0.5 * t.foot_length + p.edge_margin
+        # In front of the toe the margin is approach_margin: a sole that stops short of an
+        # edge leaves its toe room to rise before it moves on (no catch on the nosing).
+        front = 0.5 * t.foot_length + max(p.edge_margin, p.approach_margin)
         yaw = float(target[3])
         c, s = math.cos(yaw), math.sin(yaw)
         x, y = float(target[0]), float(target[1])
@@ -205,7 +232,7 @@ class TreadFootstepPlanner(FootstepPlanner):
             return c * (x + c * d - stance[0]) + s * (y + s * d - stance[1])
 
         def level(d: float) -> float | None:  # the height under the sole moved by d, or None
-            z = t.heights_along(x + c * d, y + s * d, yaw, -half, half)
+            z = t.heights_along(x + c * d, y + s * d, yaw, -half, front)
             return float(z[0]) if z.max() - z.min() < LEVEL_TOLERANCE else None
 
         options = []
@@ -214,8 +241,8 @@ class TreadFootstepPlanner(FootstepPlanner):
             for _ in range(6):  # past up to a few short treads
                 if level(d) is not None:
                     break
-                edges = t.edges_along(x + c * d, y + s * d, yaw, -half, half)
-                d += (edges[0] - half) if direction < 0 else (edges[-1] + half)
+                edges = t.edges_along(x + c * d, y + s * d, yaw, -half, front)
+                d += (edges[0] - front) if direction < 0 else (edges[-1] + half)
                 d += direction * 1e-3
             z = level(d)
             if z is not None:

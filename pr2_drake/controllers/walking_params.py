@@ -39,6 +39,16 @@ class GaitParams:
     # set, above the stance sole in single support (stairs: the stance leg on the upper tread
     # is not left crouched while the other sole swings up from the lower one).
     com_height_over_stance: bool = False
+    # Step-downs (stairs): when set, the CoM height target is com_height above the lower of
+    # the stance sole and the swing target (single support) or the next planned foothold
+    # (double support before it), so that the CoM descends before the swing sole has to reach
+    # the lower tread (the swing knee does not straighten). Level steps are unchanged.
+    com_height_step_down: bool = False
+    # [m] > 0 (stairs): knee-limit-aware CoM height. The CoM height target stays within this
+    # distance of every supporting sole, counting the CoM's offset from the sole along the
+    # heading: z <= z_sole + sqrt(com_reach^2 - dx^2). A rear sole still on the lower tread
+    # after a step-up then keeps the CoM low until it lifts (its knee stays bent). 0 = off.
+    com_reach: float = 0.0
     swing_clear_lift: float = 0.3
     swing_clear_lower: float = 0.3
     swing_lift_fraction: float = 0.0  # horizontal swing motion starts/ends this much of the
