@@ -91,8 +91,9 @@ class SearchAgentParams:
     position_tolerance: float = 0.04
     yaw_tolerance_deg: float = 5.0
     settle_time: float = 0.8
-    pre_height: float = 0.14
+    pre_height: float = 0.08
     grasp_height: float = 0.05
+    grasp_offset: float = 0.12
     reach_time: float = 1.5
     pick_timeout: float = 1.2
     pick_tries: int = 4
@@ -363,6 +364,15 @@ class ObjectSearchSequencer(LeafSystem):
         self._go(Stage.FAILED, t)
         self.error = f"target {self.instruction.target!r} not found on any table"
 
+    def _grasp_point(self, offset: float) -> np.ndarray:
+        """``offset`` [m] from the object's centre towards the hand's shoulder, not below
+        the centre plus ``grasp_height`` (within the pick distance, as near the shoulder as
+        that allows)."""
+        o = self.p_WO
+        d = self.model.shoulder_position(self.hand) - o
+        d[2] = max(d[2], self.p.grasp_height)
+        return o + offset * d / max(float(np.linalg.norm(d)), 1e-6)
+
     def _start_hand_path(self, points: list, t: float) -> None:
         start = self.model.hand_point(self.hand)[0].copy()
         self.hand_path = [start] + [np.asarray(x, float) for x in points]
@@ -414,9 +424,8 @@ class ObjectSearchSequencer(LeafSystem):
             if not standing:
                 self.t_stage = t
             elif elapsed >= p.settle_time:
-                o = self.p_WO
-                self._start_hand_path([o + [0.0, 0.0, p.pre_height],
-                                       o + [0.0, 0.0, p.grasp_height]], t)
+                grasp = self._grasp_point(p.grasp_offset)
+                self._start_hand_path([grasp + [0.0, 0.0, p.pre_height], grasp], t)
                 self.pick_tries = 0
                 self._go(Stage.REACH, t)
         if self.stage == Stage.REACH:
@@ -435,8 +444,11 @@ class ObjectSearchSequencer(LeafSystem):
                     self.error = "pick failed"
                     self._go(Stage.FAILED, t)
                 else:
-                    dz = p.grasp_height - 0.025 * self.pick_tries
-                    self.targets[self.hand] = self.p_WO + [0.0, 0.0, dz]
+                    self.targets[self.hand] = self._grasp_point(
+                        max(p.grasp_offset - 0.03 * self.pick_tries, 0.03))
+                    p_WH = self.model.hand_point(self.hand)[0]
+                    self.log.append(f"{t:7.2f} pick try {self.pick_tries}: hand "
+                                    f"{np.linalg.norm(p_WH - self.p_WO):.3f} from the object")
                     self.t_stage = t
             else:
                 self.pick = HANDS[self.hand]
