@@ -94,6 +94,7 @@ class SearchAgentParams:
     pre_height: float = 0.08
     grasp_height: float = 0.05
     grasp_offset: float = 0.12
+    lift_forward: float = 0.05
     reach_time: float = 1.5
     pick_timeout: float = 1.2
     pick_tries: int = 4
@@ -403,7 +404,6 @@ class ObjectSearchSequencer(LeafSystem):
         yaw = yaw_from_quaternion(bs[QUAT_WB])
         pick = self._pick_state.Eval(context)
         standing = int(self._status.Eval(context)[3]) == 0
-        elapsed = t - self.t_stage
         self.pick = ""
         self.release = False
         if self.places is None:
@@ -423,9 +423,16 @@ class ObjectSearchSequencer(LeafSystem):
             self.cmd = np.zeros(3)
             if not standing:
                 self.t_stage = t
-            elif elapsed >= p.settle_time:
+            elif t - self.t_stage >= p.settle_time:
                 grasp = self._grasp_point(p.grasp_offset)
-                self._start_hand_path([grasp + [0.0, 0.0, p.pre_height], grasp], t)
+                # Up in front of the body first (the hand hangs below the table top).
+                c, s_ = math.cos(yaw), math.sin(yaw)
+                p_WH = self.model.hand_point(self.hand)[0]
+                up = np.array([p_WB[0] + p.lift_forward * c, p_WB[1] + p.lift_forward * s_,
+                               grasp[2] + p.pre_height])
+                up[:2] += (p_WH[:2] - p_WB[:2]) - ((p_WH[:2] - p_WB[:2]) @ [c, s_]) * np.array(
+                    [c, s_])  # keep the hand's sideways offset
+                self._start_hand_path([up, grasp + [0.0, 0.0, p.pre_height], grasp], t)
                 self.pick_tries = 0
                 self._go(Stage.REACH, t)
         if self.stage == Stage.REACH:
@@ -438,7 +445,7 @@ class ObjectSearchSequencer(LeafSystem):
                 self._start_hand_path([p_WH + [0.0, 0.0, 0.10],
                                        self._carry_point(p_WB, yaw)], t)
                 self._go(Stage.LIFT, t)
-            elif elapsed > p.pick_timeout:
+            elif t - self.t_stage > p.pick_timeout:
                 self.pick_tries += 1
                 if self.pick_tries >= p.pick_tries:
                     self.error = "pick failed"
@@ -483,7 +490,7 @@ class ObjectSearchSequencer(LeafSystem):
             self.targets[self.hand] = self._carry_point(p_WB, yaw)
             if not standing:
                 self.t_stage = t
-            elif elapsed >= p.settle_time:
+            elif t - self.t_stage >= p.settle_time:
                 tab = self.tables[self.instruction.destination]
                 half, tan, _ = tab.side_frame(self.side)
                 p_WH = self.model.hand_point(self.hand)[0]
@@ -500,7 +507,7 @@ class ObjectSearchSequencer(LeafSystem):
             self.release = True
             if pick.attached:
                 self.t_stage = t
-            elif elapsed >= p.release_hold:
+            elif t - self.t_stage >= p.release_hold:
                 p_WH = self.model.hand_point(self.hand)[0]
                 self._start_hand_path([p_WH + [0.0, 0.0, 0.10]], t)
                 self._go(Stage.RETRACT, t)
@@ -510,7 +517,7 @@ class ObjectSearchSequencer(LeafSystem):
                 self._go(Stage.BACK, t)
         if self.stage == Stage.BACK:
             self.cmd = np.array([-p.back_speed, 0.0, 0.0])
-            if elapsed >= p.back_time:
+            if t - self.t_stage >= p.back_time:
                 self._go(Stage.DONE, t)
         if self.stage in (Stage.DONE, Stage.FAILED):
             self.cmd = np.zeros(3)
