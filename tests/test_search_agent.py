@@ -186,3 +186,15 @@ def test_closed_loop_pick_on_seed_0_from_the_desk():
     assert "pick_target" in items, seq.log
     true = ep.testbed.scene.data["initial_poses"]["book"].translation()
     assert np.linalg.norm(seq.p_WO - true) < 0.05  # found by the camera, not told
+
+
+def test_object_on_the_far_half_is_picked_from_the_other_side():
+    det = StubDetector(np.array([2.0, 3.02, 0.63]))  # desk's far (north) edge
+    seq, ctx = sequencer(detector=det)
+    seq.GetInputPort("body_state").FixValue(ctx, body_state(2.0, 1.95, math.pi / 2))
+    sim = Simulator(seq, ctx)
+    sim.AdvanceTo(1.0)
+    assert seq.stage == Stage.NAVIGATE and seq.nav_then == Stage.APPROACH
+    x, y, yaw = seq.pick_goal
+    assert y == pytest.approx(3.1 + seq.p.pick_standoff) and yaw == pytest.approx(-math.pi / 2)
+    assert np.linalg.norm(seq.path[-1] - [x, 3.1 + seq.p.stage_distance]) < 0.1

@@ -81,7 +81,9 @@ class SearchAgentParams:
     look_settle: float = 0.6
     look_frames: int = 2
     search_margin: float = 0.25
-    pick_standoff: float = 0.17
+    pick_standoff: float = 0.12
+    far_side: float = 0.38
+    stage_distance: float = 0.40
     place_standoff: float = 0.20
     hand_lateral: float = 0.10
     approach_radius: float = 0.12
@@ -283,6 +285,8 @@ class ObjectSearchSequencer(LeafSystem):
         self.look_tries = 0
         self.t_still = -1.0
         self.p_WO: Optional[np.ndarray] = None  # detected target centre
+        self.pick_goal: Optional[np.ndarray] = None  # (x, y, yaw) to pick from
+        self.nav_then = Stage.LOOK  # what follows NAVIGATE
         self.hand = 1
         self.hand_path: list = []
         self.hand_t0 = 0.0
@@ -360,6 +364,7 @@ class ObjectSearchSequencer(LeafSystem):
             goal = self._look_pose(self.place)
             if self._plan(p_WB, goal):
                 self.look_k = 0
+                self.nav_then = Stage.LOOK
                 self._go(Stage.NAVIGATE, t)
                 return
         self._go(Stage.FAILED, t)
@@ -411,9 +416,13 @@ class ObjectSearchSequencer(LeafSystem):
         st = self.stage
         if st == Stage.NAVIGATE:
             if self._walk(p_WB, yaw):
-                self._go(Stage.LOOK, t)
-                self.t_still = -1.0
-                self.look_tries = 0
+                if self.nav_then == Stage.APPROACH:
+                    self.goal = self.pick_goal
+                    self._go(Stage.APPROACH, t)
+                else:
+                    self._go(Stage.LOOK, t)
+                    self.t_still = -1.0
+                    self.look_tries = 0
         if self.stage == Stage.LOOK:
             self._look(context, p_WB, yaw, standing, t)
         if self.stage == Stage.APPROACH:
@@ -574,27 +583,34 @@ class ObjectSearchSequencer(LeafSystem):
         self.hand = 0 if along * float(left @ tan) > 0 else 1
         sign = 1.0 if self.hand == 0 else -1.0
         along -= sign * self.p.hand_lateral * float(left @ tan)
-        self.side = n
-        self.goal = self._pose_at(tab, n, along, self.p.pick_standoff)
-        self._go(Stage.APPROACH, t)
+        look = best_side(self.grid, tab, self.p.look_distance, self.nav.robot_radius)
+        self.pick_goal = self._pose_at(tab, n, along, self.p.pick_standoff)
+        if np.allclose(n, look) or not self._plan(
+                p_WB, self._pose_at(tab, n, along, self.p.stage_distance)):
+            n = look if not np.allclose(n, look) else n
+            self.pick_goal = self._pose_at(tab, n, along, self.p.pick_standoff)
+            self.side = n
+            self.goal = self.pick_goal
+            self._go(Stage.APPROACH, t)
+            return
+        self.side = n  # walk round the table first
+        self.nav_then = Stage.APPROACH
+        self._go(Stage.NAVIGATE, t)
 
     def _pick_side(self, tab: Table) -> np.ndarray:
-        """The long side nearer the object if there is floor in front of it, else the look
-        side."""
+        """The look side, or the opposite side when the object is more than ``far_side``
+        from the look side's edge and there is floor to stand on beyond the table."""
         look = best_side(self.grid, tab, self.p.look_distance, self.nav.robot_radius)
-        half, _, half_len = tab.side_frame(look)
-        if half_len < half:
-            return look
+        half, _, _ = tab.side_frame(look)
         d = self.p_WO[:2] - tab.center
+        if half - float(d @ look) <= self.p.far_side:
+            return look
         other = -look
-        if float(d @ other) > 0.03 and self._side_free(tab, other):
+        g = self.grid.inflated(self.nav.robot_radius)
+        half_o, _, _ = tab.side_frame(other)
+        if g.free(tab.center + other * (half_o + self.p.stage_distance)):
             return other
         return look
-
-    def _side_free(self, tab: Table, n: np.ndarray) -> bool:
-        g = self.grid.inflated(0.25)
-        half, _, _ = tab.side_frame(n)
-        return g.free(tab.center + n * (half + self.p.pick_standoff + 0.05))
 
     # ---- outputs -----------------------------------------------------------------------------
     def _calc_cmd(self, context, output: BasicVector) -> None:
