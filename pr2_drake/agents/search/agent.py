@@ -479,6 +479,12 @@ class ObjectSearchSequencer(LeafSystem):
                 else:
                     self.error = "no path to the destination"
                     self._go(Stage.FAILED, t)
+        if self.stage in (Stage.LIFT, Stage.CARRY, Stage.APPROACH_TABLE, Stage.SETTLE_TABLE,
+                          Stage.PLACE) and not pick.attached:
+            self.error = "the object fell from the hand"
+            self.log.append(f"{t:7.2f} {self.error}")
+            self.targets = [None, None]
+            self._go(Stage.FAILED, t)
         if self.stage == Stage.CARRY:
             self.targets[self.hand] = self._carry_point(p_WB, yaw)
             if self._walk(p_WB, yaw):
