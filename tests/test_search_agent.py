@@ -189,7 +189,7 @@ def test_closed_loop_pick_on_seed_0_from_the_desk():
 
 
 def test_object_on_the_far_half_is_picked_from_the_other_side():
-    det = StubDetector(np.array([2.0, 3.02, 0.63]))  # desk's far (north) edge
+    det = StubDetector(np.array([2.0, 3.04, 0.63]))  # desk's far (north) edge
     seq, ctx = sequencer(detector=det)
     seq.GetInputPort("body_state").FixValue(ctx, body_state(2.0, 1.95, math.pi / 2))
     sim = Simulator(seq, ctx)

@@ -82,7 +82,7 @@ class SearchAgentParams:
     look_frames: int = 2
     search_margin: float = 0.25
     pick_standoff: float = 0.12
-    far_side: float = 0.38
+    far_side: float = 0.45
     stage_distance: float = 0.40
     place_standoff: float = 0.20
     hand_lateral: float = 0.10
