@@ -22,14 +22,21 @@ Stages (``stage`` output):
 2. LOOK: stand still, take a frame, run the detector; try the headings ``look_yaws_deg``
    (the camera is fixed on the base: the body turns); nothing found -> next place;
 3. APPROACH: small steps onto a pick pose ``pick_standoff`` from the table edge, in line with
-   the object (the hand's shoulder nearer it), facing the table; SETTLE until the gait stands;
-4. REACH: the nearer hand over the object (``pre_height``), then down to ``grasp_height``
-   above its centre; PICK: ``pick`` until ``pick_state`` reports the target attached (timeout:
-   lower the hand and try again);
+   the object (the hand's shoulder nearer it), facing the table; an object more than
+   ``far_side`` from the look side's edge is picked from the opposite side when there is floor
+   there (NAVIGATE round the table first); SETTLE until the gait stands;
+4. REACH: the nearer hand rises in front of the body, moves over the grasp point
+   (``pre_height`` above it) and down onto it: ``grasp_offset`` from the object's centre
+   towards the shoulder, at least ``grasp_height`` above the centre (inside the 0.20 m pick
+   distance, as near the shoulder as that allows); PICK: ``pick`` until ``pick_state`` reports
+   it attached (timeout: closer to the centre and try again, ``pick_tries`` in all);
 5. LIFT to the carry pose, NAVIGATE (holding it) to the coffee table, APPROACH a place pose
    ``place_standoff`` from its edge, SETTLE;
 6. PLACE: the hand moves the object over the top, ``place_inset`` inside the near edge, its
    bottom ``place_clearance`` above the top; RELEASE; the hand goes up; step BACK; DONE.
+
+FAILED (standing, the reason in ``error`` and the step log in ``log``): not found on any
+table, pick failed ``pick_tries`` times, no path, or the object fell from the hand.
 
 A sentence that cannot be read (unknown object, no destination) ends the episode at its first
 update with the parser's message (termination ``agent_error``, the message in the report), not
