@@ -198,3 +198,17 @@ def test_object_on_the_far_half_is_picked_from_the_other_side():
     x, y, yaw = seq.pick_goal
     assert y == pytest.approx(3.1 + seq.p.pick_standoff) and yaw == pytest.approx(-math.pi / 2)
     assert np.linalg.norm(seq.path[-1] - [x, 3.1 + seq.p.stage_distance]) < 0.1
+
+
+def test_approach_stopped_short_by_the_table_settles_after_a_timeout():
+    seq, ctx = sequencer(detector=StubDetector(np.array([2.3, 2.7, 0.63])))
+    seq.GetInputPort("body_state").FixValue(ctx, body_state(2.0, 1.95, math.pi / 2))
+    sim = Simulator(seq, ctx)
+    sim.AdvanceTo(1.0)
+    assert seq.stage == Stage.APPROACH
+    x, y, yaw = seq.goal
+    seq.GetInputPort("body_state").FixValue(ctx, body_state(x, y - 0.07, yaw))  # 7 cm short
+    sim.AdvanceTo(1.0 + seq.p.approach_timeout - 0.5)
+    assert seq.stage == Stage.APPROACH
+    sim.AdvanceTo(1.0 + seq.p.approach_timeout + 0.5)
+    assert seq.stage in (Stage.SETTLE, Stage.REACH)

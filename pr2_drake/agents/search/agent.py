@@ -98,6 +98,8 @@ class SearchAgentParams:
     approach_yaw_gain: float = 1.5
     approach_speed: float = 0.10
     position_tolerance: float = 0.04
+    approach_timeout: float = 8.0
+    approach_accept: float = 0.12
     yaw_tolerance_deg: float = 5.0
     settle_time: float = 0.8
     pre_height: float = 0.08
@@ -355,6 +357,14 @@ class ObjectSearchSequencer(LeafSystem):
                              min(max(p.approach_yaw_gain * e_yaw, -0.4), 0.4)])
         return False
 
+    def _close_enough(self, p_WB, yaw: float, t: float) -> bool:
+        """After ``approach_timeout`` of small steps (the table edge may stop the body short
+        of the goal), within ``approach_accept`` [m] and twice the yaw tolerance is enough."""
+        p = self.p
+        return bool(t - self.t_stage > p.approach_timeout
+                    and np.linalg.norm(self.goal[:2] - p_WB[:2]) < p.approach_accept
+                    and abs(_wrap(self.goal[2] - yaw)) < 2 * math.radians(p.yaw_tolerance_deg))
+
     def _walk(self, p_WB, yaw: float) -> bool:
         """Follow ``self.path`` to ``self.goal``; True within ``approach_radius`` of its end."""
         if np.linalg.norm(self.goal[:2] - p_WB[:2]) < self.p.approach_radius:
@@ -433,7 +443,8 @@ class ObjectSearchSequencer(LeafSystem):
         if self.stage == Stage.LOOK:
             self._look(context, p_WB, yaw, standing, t)
         if self.stage == Stage.APPROACH:
-            if self._steps(p_WB, yaw):
+            if self._steps(p_WB, yaw) or self._close_enough(p_WB, yaw, t):
+                self.cmd = np.zeros(3)
                 self._go(Stage.SETTLE, t)
         if self.stage == Stage.SETTLE:
             self.cmd = np.zeros(3)
@@ -505,7 +516,8 @@ class ObjectSearchSequencer(LeafSystem):
                 self._go(Stage.APPROACH_TABLE, t)
         if self.stage == Stage.APPROACH_TABLE:
             self.targets[self.hand] = self._carry_point(p_WB, yaw)
-            if self._steps(p_WB, yaw):
+            if self._steps(p_WB, yaw) or self._close_enough(p_WB, yaw, t):
+                self.cmd = np.zeros(3)
                 self._go(Stage.SETTLE_TABLE, t)
         if self.stage == Stage.SETTLE_TABLE:
             self.cmd = np.zeros(3)
