@@ -30,7 +30,7 @@ DEFAULT_AGENTS: dict[int | None, str] = {
     3: "pr2_drake.agents.moving_bar:MovingBarAgent",
     4: "pr2_drake.agents.walk_to_goal:SlopeAgent",
     5: "pr2_drake.agents.steps_button:StepsButtonAgent",
-    6: "pr2_drake.controllers.standing:StandingController",
+    6: "pr2_drake.agents.search.agent:ObjectSearchAgent",
 }
 
 

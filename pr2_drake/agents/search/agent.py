@@ -1,0 +1,728 @@
+"""Task 6 reference agent: read the sentence, find the object with the head camera, carry it to
+the coffee table.
+
+:class:`ObjectSearchAgent` is a Diagram of a sequencer (:class:`ObjectSearchSequencer`) and the
+walking controller with the arms in the whole-body QP (``WalkingController(arms="effort")``),
+built like :class:`pr2_drake.agents.valve.ValveAgent`. The sequencer is made of the search
+parts, each replaceable on its own (constructor arguments of :class:`ObjectSearchSequencer`):
+
+- ``parser`` (:class:`~.instruction.InstructionParser`, anything with ``parse(sentence)``):
+  the ``instruction`` prior -> target object, source furniture/room, destination;
+- ``detector`` (:class:`~.perception.ObjectDetector`, anything with ``find(rgb, depth, X_WC,
+  target)``): the head camera frame (``rgbd`` input) -> the target's position in W;
+- ``grid`` (:class:`~.navigation.OccupancyGrid` of the public scene description) and
+  :func:`~.navigation.plan_path` / :func:`~.navigation.follow_velocity`: walking between rooms.
+
+Stages (``stage`` output):
+
+1. NAVIGATE to a look pose ``look_distance`` before the next likely place (the source
+   furniture; else the furniture of the source room; else the object's home table in the
+   public scene description; then the other tables, nearest first), facing its top, on the
+   side of the table with the most free floor;
+2. LOOK: stand still, take a frame, run the detector; try the headings ``look_yaws_deg``
+   (the camera is fixed on the base: the body turns); nothing found -> next place;
+3. APPROACH: small steps onto a pick pose ``pick_standoff`` from the table edge, in line with
+   the object (the hand's shoulder nearer it), facing the table; an object more than
+   ``far_side`` from the look side's edge is picked from the opposite side when there is floor
+   there (NAVIGATE round the table first); SETTLE until the gait stands;
+4. REACH: the nearer hand rises in front of the body, moves over the grasp point
+   (``pre_height`` above it) and down onto it: ``grasp_offset`` from the object's centre
+   towards the shoulder, at least ``grasp_height`` above the centre (inside the 0.20 m pick
+   distance, as near the shoulder as that allows); PICK: ``pick`` until ``pick_state`` reports
+   it attached (timeout: closer to the centre and try again, ``pick_tries`` in all);
+5. LIFT to the carry pose, NAVIGATE (holding it) to the coffee table, APPROACH a place pose
+   ``place_standoff`` from its edge, SETTLE;
+6. PLACE: the hand moves the object over the top, ``place_inset`` inside the near edge, its
+   bottom ``place_clearance`` above the top; RELEASE; the hand goes up; step BACK; DONE.
+
+FAILED (standing, the reason in ``error`` and the step log in ``log``): not found on any
+table, pick failed ``pick_tries`` times, no path, or the object fell from the hand.
+
+A sentence that cannot be read (unknown object, no destination) ends the episode at its first
+update with the parser's message (termination ``agent_error``, the message in the report), not
+with a crash at build time. Only the public observation (``body_state``, ``joint_state``,
+``pick_state``, ``rgbd``), the priors (``instruction``, ``object_models``,
+``coffee_table_center``, ``coffee_table_size``) and the task's public scene description
+(tasks/6_object_search.yaml: walls, furniture, camera) are used; no simulator ground truth.
+Parameters: controllers/search_agent.yaml. Positions in m, world frame W.
+
+(No ``from __future__ import annotations``: ``yaml_load_typed`` reads the field types.)
+"""
+
+import enum
+import math
+from dataclasses import dataclass, field
+from typing import Any, List, Optional
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.common.yaml import yaml_load_typed
+from pydrake.systems.framework import BasicVector, Diagram, DiagramBuilder, LeafSystem
+
+from pr2_drake.agents.search.instruction import Instruction, InstructionError
+from pr2_drake.agents.search.navigation import (
+    NavigationParams,
+    NoPathError,
+    OccupancyGrid,
+    follow_velocity,
+    plan_path,
+)
+from pr2_drake.agents.walk_to_goal import yaw_from_quaternion
+from pr2_drake.camera import RgbdFrame
+from pr2_drake.grasp import PickState
+from pr2_drake.lifetime import weak_calc
+from pr2_drake.paths import resolve_user_path
+from pr2_drake.ports import BODY_STATE_SIZE, JOINT_STATE_SIZE, P_WB, QUAT_WB
+
+DEFAULT_PARAMS = "controllers/search_agent.yaml"
+HANDS = ("left_hand", "right_hand")
+
+
+@dataclass
+class SearchAgentParams:
+    """See controllers/search_agent.yaml (m, s, deg where named)."""
+
+    period: float = 0.02
+    look_distance: float = 0.55
+    look_yaws_deg: List[float] = field(default_factory=lambda: [0.0, 30.0, -30.0])
+    look_settle: float = 0.6
+    look_frames: int = 2
+    search_margin: float = 0.25
+    pick_standoff: float = 0.12
+    far_side: float = 0.45
+    stage_distance: float = 0.40
+    place_standoff: float = 0.20
+    hand_lateral: float = 0.10
+    approach_radius: float = 0.12
+    approach_gain: float = 1.0
+    approach_yaw_gain: float = 1.5
+    approach_speed: float = 0.10
+    position_tolerance: float = 0.04
+    approach_timeout: float = 8.0
+    approach_accept: float = 0.12
+    yaw_tolerance_deg: float = 5.0
+    settle_time: float = 0.8
+    pre_height: float = 0.08
+    grasp_height: float = 0.05
+    grasp_offset: float = 0.12
+    lift_forward: float = 0.05
+    reach_time: float = 1.5
+    pick_timeout: float = 1.2
+    pick_tries: int = 4
+    carry: List[float] = field(default_factory=lambda: [0.22, 0.14, 0.30])
+    place_inset: float = 0.17
+    place_clearance: float = 0.03
+    release_hold: float = 0.6
+    back_speed: float = 0.10
+    back_time: float = 2.0
+
+    @staticmethod
+    def load(path: str = DEFAULT_PARAMS) -> "SearchAgentParams":
+        return yaml_load_typed(schema=SearchAgentParams,
+                               filename=str(resolve_user_path(path, "search agent parameters")))
+
+
+class Stage(enum.IntEnum):
+    NAVIGATE = 0
+    LOOK = 1
+    APPROACH = 2
+    SETTLE = 3
+    REACH = 4
+    PICK = 5
+    LIFT = 6
+    CARRY = 7
+    APPROACH_TABLE = 8
+    SETTLE_TABLE = 9
+    PLACE = 10
+    RELEASE = 11
+    RETRACT = 12
+    BACK = 13
+    DONE = 14
+    FAILED = 15
+
+
+@dataclass(frozen=True)
+class Table:
+    """A table top from the public scene description: centre (x, y), size (x, y), top height."""
+
+    name: str
+    center: np.ndarray
+    size: np.ndarray
+    height: float
+
+    def side_frame(self, normal: np.ndarray):
+        """(half depth along ``normal``, unit tangent, half length along the tangent)."""
+        n = np.asarray(normal, float)
+        t = np.array([-n[1], n[0]])
+        return (float(abs(n) @ self.size) / 2, t, float(abs(t) @ self.size) / 2)
+
+    def contains(self, p, margin: float = 0.0) -> bool:
+        return bool(np.all(np.abs(np.asarray(p)[:2] - self.center) <= self.size / 2 + margin))
+
+
+def tables_from_scene(scene: dict) -> dict[str, Table]:
+    """Every furniture top of the task YAML's ``scene`` block."""
+    return {k: Table(k, np.asarray(f["center"], float), np.asarray(f["size"], float),
+                     float(f["height"])) for k, f in scene["furniture"].items()}
+
+
+def best_side(grid: OccupancyGrid, table: Table, standoff: float, radius: float) -> np.ndarray:
+    """Outward unit normal (x, y) of the table side to stand at: the long sides first, the one
+    with the most free floor in front (ray on the grid inflated by ``radius``)."""
+    g = grid.inflated(radius)
+    best, best_key = None, None
+    for n in (np.array([1.0, 0.0]), np.array([-1.0, 0.0]), np.array([0.0, 1.0]),
+              np.array([0.0, -1.0])):
+        half, _, half_len = table.side_frame(n)
+        free = 0.0
+        for d in np.arange(standoff, 2.0, 0.05):
+            if not g.free(table.center + n * (half + d)):
+                break
+            free = d
+        key = (free >= standoff + 0.2, half_len >= half, free)
+        if best_key is None or key > best_key:
+            best, best_key = n, key
+    return best
+
+
+def search_order(instr: Instruction, vocab_home: dict[str, str], furniture_room: dict[str, str],
+                 tables: dict[str, Table], destination: str, p0) -> list[str]:
+    """Furniture keys to search, most likely first (the destination is never searched)."""
+    order: list[str] = []
+    if instr.source_furniture:
+        order.append(instr.source_furniture)
+    if instr.source_room:
+        order += [f for f, r in furniture_room.items() if r == instr.source_room]
+    home = vocab_home.get(instr.target)
+    if home:
+        order.append(home)
+    rest = sorted(tables, key=lambda k: float(np.linalg.norm(tables[k].center - p0[:2])))
+    order += rest
+    out: list[str] = []
+    for k in order:
+        if k in tables and k not in out and k != destination:
+            out.append(k)
+    return out
+
+
+def _smooth(s: float) -> float:
+    s = min(max(s, 0.0), 1.0)
+    return s * s * (3.0 - 2.0 * s)
+
+
+def _wrap(a: float) -> float:
+    return math.atan2(math.sin(a), math.cos(a))
+
+
+class ObjectSearchSequencer(LeafSystem):
+    """Stages of the search and transport (see the module docstring).
+
+    Inputs: ``body_state``, ``joint_state``, ``pick_state``, ``rgbd`` (RgbdFrame),
+    ``walker_status``. Outputs: ``velocity_command`` (3), ``hand_targets`` ([left, right]),
+    ``pick`` (str), ``release`` (bool), ``stage`` (1).
+
+    Args:
+        instruction: the parsed sentence, or None with ``error`` the parser's message.
+        scene: the task YAML's public ``scene`` block (walls, furniture, objects' homes).
+        detector: ``find(rgb, depth, X_WC, target) -> Detection | None``.
+        object_height: the target's height [m] (its model), for the place height.
+        coffee_table: (x, y, top z) and size (x, y) of the destination, from the priors.
+    """
+
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
+    def __init__(self, instruction: Optional[Instruction], scene: dict, detector,
+                 object_height: float, params: SearchAgentParams | None = None,
+                 nav: NavigationParams | None = None, camera_kinematics=None,
+                 error: str = "", frame_shape=(480, 640)):
+        super().__init__()
+        from pr2_drake.controllers.wb_model import WholeBodyModel
+
+        self.p = params or SearchAgentParams()
+        self.nav = nav or NavigationParams()
+        self.instruction = instruction
+        self.error = error
+        self.detector = detector
+        self.kin = camera_kinematics
+        self.object_height = float(object_height)
+        self.tables = tables_from_scene(scene)
+        self.home = {k: v["table"] for k, v in scene["objects"].items()}
+        self.room_of = {k: v["room"] for k, v in scene["furniture"].items()}
+        self.grid = OccupancyGrid.from_scene(scene, self.nav.resolution)
+        self.model = WholeBodyModel()  # forward kinematics of the observed state
+        self._bs = self.DeclareVectorInputPort("body_state", BODY_STATE_SIZE)
+        self._js = self.DeclareVectorInputPort("joint_state", JOINT_STATE_SIZE)
+        self._pick_state = self.DeclareAbstractInputPort("pick_state",
+                                                         AbstractValue.Make(PickState()))
+        h, w = frame_shape
+        blank = RgbdFrame(np.zeros((h, w, 3), np.uint8), np.zeros((h, w), np.float32))
+        self._rgbd = self.DeclareAbstractInputPort("rgbd", AbstractValue.Make(blank))
+        self._status = self.DeclareVectorInputPort("walker_status", 6)
+        self.DeclareDiscreteState(1)
+        after_update = {self.all_state_ticket()}
+        self.DeclareVectorOutputPort("velocity_command", 3, weak_calc(self._calc_cmd),
+                                     prerequisites_of_calc=after_update)
+        self.DeclareAbstractOutputPort("hand_targets", lambda: AbstractValue.Make([None, None]),
+                                       weak_calc(self._calc_targets),
+                                       prerequisites_of_calc=after_update)
+        self.DeclareAbstractOutputPort("pick", lambda: AbstractValue.Make(""),
+                                       weak_calc(self._calc_pick),
+                                       prerequisites_of_calc=after_update)
+        self.DeclareAbstractOutputPort("release", lambda: AbstractValue.Make(False),
+                                       weak_calc(self._calc_release),
+                                       prerequisites_of_calc=after_update)
+        self.DeclareVectorOutputPort("stage", 1, weak_calc(self._calc_stage),
+                                     prerequisites_of_calc=after_update)
+        self.DeclarePeriodicUnrestrictedUpdateEvent(self.p.period, 0.0, self._update)
+        self.reset()
+
+    # ---- memory ------------------------------------------------------------------------------
+    def reset(self) -> None:
+        self.stage = Stage.NAVIGATE
+        self.t_stage = 0.0
+        self.t_last = -1.0
+        self.cmd = np.zeros(3)
+        self.targets: list = [None, None]
+        self.pick = ""
+        self.release = False
+        self.places: Optional[list[str]] = None  # furniture still to search
+        self.place: Optional[str] = None
+        self.side = np.array([0.0, 1.0])  # outward normal of the side we stand at
+        self.path = None
+        self.goal: Optional[np.ndarray] = None  # (x, y, yaw) of the current pose goal
+        self.look_k = 0  # index into look_yaws_deg
+        self.look_tries = 0
+        self.t_still = -1.0
+        self.p_WO: Optional[np.ndarray] = None  # detected target centre
+        self.pick_goal: Optional[np.ndarray] = None  # (x, y, yaw) to pick from
+        self.nav_then = Stage.LOOK  # what follows NAVIGATE
+        self.hand = 1
+        self.hand_path: list = []
+        self.hand_t0 = 0.0
+        self.pick_tries = 0
+        self.offset_z = 0.0  # hand centre above the object's centre while holding it
+        self.log: list[str] = []
+
+    def _go(self, stage: Stage, t: float) -> None:
+        self.log.append(f"{t:7.2f} {self.stage.name} -> {stage.name}")
+        self.stage = stage
+        self.t_stage = t
+
+    # ---- geometry ----------------------------------------------------------------------------
+    def _look_pose(self, name: str) -> np.ndarray:
+        tab = self.tables[name]
+        n = best_side(self.grid, tab, self.p.look_distance, self.nav.robot_radius)
+        half, _, _ = tab.side_frame(n)
+        xy = tab.center + n * (half + self.p.look_distance)
+        return np.array([xy[0], xy[1], math.atan2(-n[1], -n[0])])
+
+    def _pose_at(self, tab: Table, n: np.ndarray, along: float, standoff: float) -> np.ndarray:
+        half, t, half_len = tab.side_frame(n)
+        along = float(np.clip(along, -half_len - 0.1, half_len + 0.1))
+        xy = tab.center + n * (half + standoff) + t * along
+        return np.array([xy[0], xy[1], math.atan2(-n[1], -n[0])])
+
+    def _heading_frame(self, yaw: float, err_W) -> tuple[float, float]:
+        cy, sy = math.cos(yaw), math.sin(yaw)
+        return cy * err_W[0] + sy * err_W[1], -sy * err_W[0] + cy * err_W[1]
+
+    def _carry_point(self, p_WB, yaw: float) -> np.ndarray:
+        x, y, z = self.p.carry
+        y = y if self.hand == 0 else -y
+        c, s = math.cos(yaw), math.sin(yaw)
+        return np.array([p_WB[0] + c * x - s * y, p_WB[1] + s * x + c * y, p_WB[2] + z])
+
+    def _plan(self, p_WB, goal: np.ndarray) -> bool:
+        try:
+            self.path = plan_path(self.grid, p_WB[:2], goal[:2], self.nav.robot_radius)
+        except NoPathError as e:
+            self.log.append(f"no path: {e}")
+            self.path = None
+            return False
+        self.goal = goal
+        return True
+
+    def _steps(self, p_WB, yaw: float) -> bool:
+        """Proportional small steps onto ``self.goal``; True when there."""
+        p = self.p
+        ex, ey = self._heading_frame(yaw, self.goal[:2] - p_WB[:2])
+        e_yaw = _wrap(self.goal[2] - yaw)
+        if math.hypot(ex, ey) < p.position_tolerance and abs(e_yaw) < math.radians(
+                p.yaw_tolerance_deg):
+            self.cmd = np.zeros(3)
+            return True
+        s = p.approach_speed
+        self.cmd = np.array([min(max(p.approach_gain * ex, -s), s),
+                             min(max(p.approach_gain * ey, -s), s),
+                             min(max(p.approach_yaw_gain * e_yaw, -0.4), 0.4)])
+        return False
+
+    def _close_enough(self, p_WB, yaw: float, t: float) -> bool:
+        """After ``approach_timeout`` of small steps (the table edge may stop the body short
+        of the goal), within ``approach_accept`` [m] and twice the yaw tolerance is enough."""
+        p = self.p
+        return bool(t - self.t_stage > p.approach_timeout
+                    and np.linalg.norm(self.goal[:2] - p_WB[:2]) < p.approach_accept
+                    and abs(_wrap(self.goal[2] - yaw)) < 2 * math.radians(p.yaw_tolerance_deg))
+
+    def _walk(self, p_WB, yaw: float) -> bool:
+        """Follow ``self.path`` to ``self.goal``; True within ``approach_radius`` of its end."""
+        if np.linalg.norm(self.goal[:2] - p_WB[:2]) < self.p.approach_radius:
+            return True
+        self.cmd = follow_velocity(self.path, p_WB, yaw, None, self.nav)
+        return False
+
+    def _next_place(self, p_WB, t: float) -> None:
+        if self.places is None:
+            self.places = search_order(self.instruction, self.home, self.room_of, self.tables,
+                                       self.instruction.destination, p_WB)
+        while self.places:
+            self.place = self.places.pop(0)
+            goal = self._look_pose(self.place)
+            if self._plan(p_WB, goal):
+                self.look_k = 0
+                self.nav_then = Stage.LOOK
+                self._go(Stage.NAVIGATE, t)
+                return
+        self._go(Stage.FAILED, t)
+        self.error = f"target {self.instruction.target!r} not found on any table"
+
+    def _grasp_point(self, offset: float) -> np.ndarray:
+        """``offset`` [m] from the object's centre towards the hand's shoulder, not below
+        the centre plus ``grasp_height`` (within the pick distance, as near the shoulder as
+        that allows)."""
+        o = self.p_WO
+        d = self.model.shoulder_position(self.hand) - o
+        d[2] = max(d[2], self.p.grasp_height)
+        return o + offset * d / max(float(np.linalg.norm(d)), 1e-6)
+
+    def _start_hand_path(self, points: list, t: float) -> None:
+        start = self.model.hand_point(self.hand)[0].copy()
+        self.hand_path = [start] + [np.asarray(x, float) for x in points]
+        self.hand_t0 = t
+
+    def _follow_hand(self, t: float, hold: float = 0.3) -> bool:
+        T = self.p.reach_time
+        k = (t - self.hand_t0) / T
+        seg = min(int(k), len(self.hand_path) - 2)
+        a, b = self.hand_path[seg], self.hand_path[seg + 1]
+        self.targets[self.hand] = a + (b - a) * _smooth(k - seg)
+        return k >= len(self.hand_path) - 1 + hold / T
+
+    # ---- the sequencer -----------------------------------------------------------------------
+    def _update(self, context, state) -> None:
+        t = context.get_time()
+        if t < self.t_last - 1e-9:
+            self.reset()
+        self.t_last = t
+        if self.instruction is None:
+            raise InstructionError(f"ObjectSearchAgent cannot read the instruction: "
+                                   f"{self.error}")
+        p = self.p
+        bs = self._bs.Eval(context)
+        js = self._js.Eval(context)
+        self.model.update(*self.model.state_from_ports(js, bs))
+        p_WB = bs[P_WB]
+        yaw = yaw_from_quaternion(bs[QUAT_WB])
+        pick = self._pick_state.Eval(context)
+        standing = int(self._status.Eval(context)[3]) == 0
+        self.pick = ""
+        self.release = False
+        if self.places is None:
+            self._next_place(p_WB, t)
+        st = self.stage
+        if st == Stage.NAVIGATE:
+            if self._walk(p_WB, yaw):
+                if self.nav_then == Stage.APPROACH:
+                    self.goal = self.pick_goal
+                    self._go(Stage.APPROACH, t)
+                else:
+                    self._go(Stage.LOOK, t)
+                    self.t_still = -1.0
+                    self.look_tries = 0
+        if self.stage == Stage.LOOK:
+            self._look(context, p_WB, yaw, standing, t)
+        if self.stage == Stage.APPROACH:
+            if self._steps(p_WB, yaw) or self._close_enough(p_WB, yaw, t):
+                self.cmd = np.zeros(3)
+                self._go(Stage.SETTLE, t)
+        if self.stage == Stage.SETTLE:
+            self.cmd = np.zeros(3)
+            if not standing:
+                self.t_stage = t
+            elif t - self.t_stage >= p.settle_time:
+                grasp = self._grasp_point(p.grasp_offset)
+                # Up in front of the body first (the hand hangs below the table top).
+                c, s_ = math.cos(yaw), math.sin(yaw)
+                p_WH = self.model.hand_point(self.hand)[0]
+                up = np.array([p_WB[0] + p.lift_forward * c, p_WB[1] + p.lift_forward * s_,
+                               grasp[2] + p.pre_height])
+                up[:2] += (p_WH[:2] - p_WB[:2]) - ((p_WH[:2] - p_WB[:2]) @ [c, s_]) * np.array(
+                    [c, s_])  # keep the hand's sideways offset
+                self._start_hand_path([up, grasp + [0.0, 0.0, p.pre_height], grasp], t)
+                self.pick_tries = 0
+                self._go(Stage.REACH, t)
+        if self.stage == Stage.REACH:
+            if self._follow_hand(t):
+                self._go(Stage.PICK, t)
+        if self.stage == Stage.PICK:
+            if pick.attached:
+                p_WH = self.model.hand_point(self.hand)[0]
+                self.offset_z = float(p_WH[2] - self.p_WO[2])
+                self._start_hand_path([p_WH + [0.0, 0.0, 0.10],
+                                       self._carry_point(p_WB, yaw)], t)
+                self._go(Stage.LIFT, t)
+            elif t - self.t_stage > p.pick_timeout:
+                self.pick_tries += 1
+                if self.pick_tries >= p.pick_tries:
+                    self.error = "pick failed"
+                    self._go(Stage.FAILED, t)
+                else:
+                    self.targets[self.hand] = self._grasp_point(
+                        max(p.grasp_offset - 0.03 * self.pick_tries, 0.03))
+                    p_WH = self.model.hand_point(self.hand)[0]
+                    self.log.append(f"{t:7.2f} pick try {self.pick_tries}: hand "
+                                    f"{np.linalg.norm(p_WH - self.p_WO):.3f} from the object")
+                    self.t_stage = t
+            else:
+                self.pick = HANDS[self.hand]
+        if self.stage == Stage.LIFT:
+            if self._follow_hand(t):
+                tab = self.tables[self.instruction.destination]
+                n = best_side(self.grid, tab, p.look_distance, self.nav.robot_radius)
+                goal = self._pose_at(tab, n, 0.0, p.look_distance)
+                self.side = n
+                if self._plan(p_WB, goal):
+                    self._go(Stage.CARRY, t)
+                else:
+                    self.error = "no path to the destination"
+                    self._go(Stage.FAILED, t)
+        if self.stage in (Stage.LIFT, Stage.CARRY, Stage.APPROACH_TABLE, Stage.SETTLE_TABLE,
+                          Stage.PLACE) and not pick.attached:
+            self.error = "the object fell from the hand"
+            self.log.append(f"{t:7.2f} {self.error}")
+            self.targets = [None, None]
+            self._go(Stage.FAILED, t)
+        if self.stage == Stage.CARRY:
+            self.targets[self.hand] = self._carry_point(p_WB, yaw)
+            if self._walk(p_WB, yaw):
+                tab = self.tables[self.instruction.destination]
+                _, tan, _ = tab.side_frame(self.side)
+                # The holding hand's shoulder over the table's centre line.
+                left = np.array([self.side[1], -self.side[0]])  # robot's left facing -n
+                sign = 1.0 if self.hand == 0 else -1.0
+                along = -sign * p.hand_lateral * float(left @ tan)
+                self.goal = self._pose_at(tab, self.side, along, p.place_standoff)
+                self._go(Stage.APPROACH_TABLE, t)
+        if self.stage == Stage.APPROACH_TABLE:
+            self.targets[self.hand] = self._carry_point(p_WB, yaw)
+            if self._steps(p_WB, yaw) or self._close_enough(p_WB, yaw, t):
+                self.cmd = np.zeros(3)
+                self._go(Stage.SETTLE_TABLE, t)
+        if self.stage == Stage.SETTLE_TABLE:
+            self.cmd = np.zeros(3)
+            self.targets[self.hand] = self._carry_point(p_WB, yaw)
+            if not standing:
+                self.t_stage = t
+            elif t - self.t_stage >= p.settle_time:
+                tab = self.tables[self.instruction.destination]
+                half, tan, _ = tab.side_frame(self.side)
+                p_WH = self.model.hand_point(self.hand)[0]
+                along = float((p_WH[:2] - tab.center) @ tan)
+                xy = tab.center + self.side * (half - p.place_inset) + tan * along
+                z = (tab.height + p.place_clearance + 0.5 * self.object_height + self.offset_z)
+                drop = np.array([xy[0], xy[1], z])
+                self._start_hand_path([drop + [0.0, 0.0, 0.08], drop], t)
+                self._go(Stage.PLACE, t)
+        if self.stage == Stage.PLACE:
+            if self._follow_hand(t):
+                self._go(Stage.RELEASE, t)
+        if self.stage == Stage.RELEASE:
+            self.release = True
+            if pick.attached:
+                self.t_stage = t
+            elif t - self.t_stage >= p.release_hold:
+                p_WH = self.model.hand_point(self.hand)[0]
+                self._start_hand_path([p_WH + [0.0, 0.0, 0.10]], t)
+                self._go(Stage.RETRACT, t)
+        if self.stage == Stage.RETRACT:
+            if self._follow_hand(t):
+                self.targets[self.hand] = None
+                self._go(Stage.BACK, t)
+        if self.stage == Stage.BACK:
+            self.cmd = np.array([-p.back_speed, 0.0, 0.0])
+            if t - self.t_stage >= p.back_time:
+                self._go(Stage.DONE, t)
+        if self.stage in (Stage.DONE, Stage.FAILED):
+            self.cmd = np.zeros(3)
+        state.get_mutable_discrete_state().get_mutable_vector(0).SetAtIndex(0, float(self.stage))
+
+    def _look(self, context, p_WB, yaw: float, standing: bool, t: float) -> None:
+        p = self.p
+        base_yaw = self.goal[2]
+        want = base_yaw + math.radians(p.look_yaws_deg[self.look_k])
+        e_yaw = _wrap(want - yaw)
+        if abs(e_yaw) > math.radians(p.yaw_tolerance_deg):
+            self.cmd = np.array([0.0, 0.0, min(max(p.approach_yaw_gain * e_yaw, -0.4), 0.4)])
+            self.t_still = -1.0
+            return
+        self.cmd = np.zeros(3)
+        if not standing:
+            self.t_still = -1.0
+            return
+        if self.t_still < 0:
+            self.t_still = t
+        if t - self.t_still < p.look_settle + 0.15 * self.look_tries:
+            return
+        det = self._detect(context)
+        self.look_tries += 1
+        tab = self.tables[self.place]
+        if det is not None and tab.contains(det, p.search_margin) and abs(
+                det[2] - tab.height) < 0.35:
+            self.p_WO = det
+            self.log.append(f"{t:7.2f} found {self.instruction.target} at "
+                            f"{np.round(det, 3).tolist()} on {self.place}")
+            self._start_approach(p_WB, t)
+            return
+        if self.look_tries >= p.look_frames:
+            self.look_tries = 0
+            self.look_k += 1
+            if self.look_k >= len(p.look_yaws_deg):
+                self._next_place(p_WB, t)
+
+    def _detect(self, context) -> Optional[np.ndarray]:
+        frame = self._rgbd.Eval(context)
+        if frame.depth.size == 0:
+            return None
+        X_WC = self.kin.camera_pose(self._bs.Eval(context), self._js.Eval(context))
+        hit = self.detector.find(frame.color, frame.depth, X_WC, self.instruction.target)
+        return None if hit is None else np.asarray(hit.p_WO, float)
+
+    def _start_approach(self, p_WB, t: float) -> None:
+        tab = self.tables[self.place]
+        # Stand at the side nearest the object (when there is room), else the look side.
+        n = self._pick_side(tab)
+        half, tan, _ = tab.side_frame(n)
+        along = float((self.p_WO[:2] - tab.center) @ tan)
+        left = np.array([n[1], -n[0]])  # the robot's left when it faces -n
+        self.hand = 0 if along * float(left @ tan) > 0 else 1
+        sign = 1.0 if self.hand == 0 else -1.0
+        along -= sign * self.p.hand_lateral * float(left @ tan)
+        look = best_side(self.grid, tab, self.p.look_distance, self.nav.robot_radius)
+        self.pick_goal = self._pose_at(tab, n, along, self.p.pick_standoff)
+        if np.allclose(n, look) or not self._plan(
+                p_WB, self._pose_at(tab, n, along, self.p.stage_distance)):
+            n = look if not np.allclose(n, look) else n
+            self.pick_goal = self._pose_at(tab, n, along, self.p.pick_standoff)
+            self.side = n
+            self.goal = self.pick_goal
+            self._go(Stage.APPROACH, t)
+            return
+        self.side = n  # walk round the table first
+        self.nav_then = Stage.APPROACH
+        self._go(Stage.NAVIGATE, t)
+
+    def _pick_side(self, tab: Table) -> np.ndarray:
+        """The look side, or the opposite side when the object is more than ``far_side``
+        from the look side's edge and there is floor to stand on beyond the table."""
+        look = best_side(self.grid, tab, self.p.look_distance, self.nav.robot_radius)
+        half, _, _ = tab.side_frame(look)
+        d = self.p_WO[:2] - tab.center
+        if half - float(d @ look) <= self.p.far_side:
+            return look
+        other = -look
+        g = self.grid.inflated(self.nav.robot_radius)
+        half_o, _, _ = tab.side_frame(other)
+        if g.free(tab.center + other * (half_o + self.p.stage_distance)):
+            return other
+        return look
+
+    # ---- outputs -----------------------------------------------------------------------------
+    def _calc_cmd(self, context, output: BasicVector) -> None:
+        output.SetFromVector(self.cmd)
+
+    def _calc_targets(self, context, output) -> None:
+        output.set_value([None if x is None else np.array(x) for x in self.targets])
+
+    def _calc_pick(self, context, output) -> None:
+        output.set_value(self.pick)
+
+    def _calc_release(self, context, output) -> None:
+        output.set_value(bool(self.release))
+
+    def _calc_stage(self, context, output: BasicVector) -> None:
+        output.SetFromVector([float(self.stage)])
+
+
+class ObjectSearchAgent(Diagram):
+    """Task 6 reference agent (see the module docstring).
+
+    Input ports: ``joint_state``, ``body_state``, ``pick_state``, ``rgbd``. Output ports:
+    ``legs_command``, ``arms_command`` (effort, from the whole-body QP), ``pick``,
+    ``release``, ``velocity_command`` and ``stage``.
+
+    Args:
+        priors: the task's priors (``instruction``, ``object_models``, ``coffee_table_*``).
+        params: sequencer YAML (default controllers/search_agent.yaml).
+        parser: replaces the rule-based :class:`InstructionParser` (``parse(sentence)``).
+        detector: replaces the :class:`ObjectDetector` (``find(rgb, depth, X_WC, target)``).
+    """
+
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
+    def __init__(self, priors: dict[str, Any], params: str | None = None, parser=None,
+                 detector=None):
+        super().__init__()
+        from pr2_drake.agents.search.instruction import InstructionParser
+        from pr2_drake.agents.search.perception import (
+            CameraIntrinsics,
+            HeadCameraKinematics,
+            ObjectDetector,
+            object_models_from_priors,
+        )
+        from pr2_drake.controllers.walking import WalkingController
+        from pr2_drake.tasks import get_task
+
+        if "object_models" not in priors:
+            raise ValueError(f"ObjectSearchAgent needs the task-6 priors (object_models, "
+                             f"instruction); got {sorted(priors)}")
+        spec = get_task(6).spec
+        scene = spec.scene
+        parser = parser or InstructionParser.from_task()
+        instruction, error = None, ""
+        try:
+            instruction = parser.parse(priors.get("instruction", ""))
+        except InstructionError as e:
+            error = str(e)
+        cam = spec.camera
+        K = CameraIntrinsics.from_fov(int(cam["width"]), int(cam["height"]),
+                                      float(cam["fov_y_deg"]))
+        models = object_models_from_priors(priors)
+        detector = detector or ObjectDetector(models, K)
+        height = models[instruction.target].height if (
+            instruction and instruction.target in models) else 0.1
+        seq = ObjectSearchSequencer(instruction, scene, detector, height,
+                                    SearchAgentParams.load(params or DEFAULT_PARAMS),
+                                    NavigationParams.load(), HeadCameraKinematics(), error,
+                                    (K.height, K.width))
+        builder = DiagramBuilder()
+        builder.AddNamedSystem("sequencer", seq)
+        walker = builder.AddNamedSystem("walker", WalkingController(arms="effort"))
+        js = builder.ExportInput(walker.GetInputPort("joint_state"), "joint_state")
+        bs = builder.ExportInput(walker.GetInputPort("body_state"), "body_state")
+        ps = builder.ExportInput(walker.GetInputPort("pick_state"), "pick_state")
+        builder.ConnectInput(js, seq.GetInputPort("joint_state"))
+        builder.ConnectInput(bs, seq.GetInputPort("body_state"))
+        builder.ConnectInput(ps, seq.GetInputPort("pick_state"))
+        builder.ExportInput(seq.GetInputPort("rgbd"), "rgbd")
+        builder.Connect(walker.GetOutputPort("status"), seq.GetInputPort("walker_status"))
+        builder.Connect(seq.GetOutputPort("velocity_command"),
+                        walker.GetInputPort("velocity_command"))
+        builder.Connect(seq.GetOutputPort("hand_targets"), walker.GetInputPort("hand_targets"))
+        builder.ExportOutput(walker.GetOutputPort("legs_command"), "legs_command")
+        builder.ExportOutput(walker.GetOutputPort("arms_command"), "arms_command")
+        builder.ExportOutput(seq.GetOutputPort("pick"), "pick")
+        builder.ExportOutput(seq.GetOutputPort("release"), "release")
+        builder.ExportOutput(seq.GetOutputPort("velocity_command"), "velocity_command")
+        builder.ExportOutput(seq.GetOutputPort("stage"), "stage")
+        builder.BuildInto(self)
