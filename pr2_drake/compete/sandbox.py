@@ -170,6 +170,11 @@ class AgentProcess:
         if use_bwrap:
             argv = ["bwrap", "--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc",
                     "--tmpfs", "/tmp", "--tmpfs", "/dev/shm"]
+            # The project and its Python may themselves live under /tmp (a CI clone): bind
+            # them back, read-only, over the empty /tmp.
+            for keep in sorted({_PROJECT_ROOT, Path(sys.prefix), Path(sys.base_prefix)}):
+                if any(_contains(Path(t), (keep,)) for t in ("/tmp", "/dev/shm")):
+                    argv += ["--ro-bind", str(keep), str(keep)]
             for h in self.hide:
                 if h.is_dir() and not _contains(h, (_PROJECT_ROOT, Path(sys.prefix),
                                                     Path(sys.base_prefix))):
