@@ -64,7 +64,7 @@ def test_a_state_beyond_physical_bounds_is_diverged_not_fell():
 
 def test_a_non_finite_state_is_diverged():
     episode = _standing_episode()
-    plant, ctx = episode.testbed.plant, episode.plant_context
+    ctx = episode.plant_context
     x = ctx.get_mutable_discrete_state_vector()  # (SetPositions refuses NaN)
     x.SetAtIndex(4, np.nan)
     status = episode.advance_to(0.1)

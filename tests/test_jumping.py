@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from pr2_drake.controllers.centroidal_mpc import CentroidalMpc, MpcParams, leg_force_limits
+from pr2_drake.controllers.centroidal_mpc import CentroidalMpc, leg_force_limits
 from pr2_drake.controllers.jump_params import JumpParams
 from pr2_drake.controllers.jumping import JumpController, check_jump_command
 from pr2_drake.controllers.wb_model import WholeBodyModel

@@ -1,6 +1,5 @@
 """Every notebook in notebooks/ runs top to bottom (shortened with PR2_DRAKE_QUICK=1)."""
 
-import os
 from pathlib import Path
 
 import nbformat

@@ -26,13 +26,10 @@ from pr2_drake.ports import (
     Q_ARMS,
     Q_LEGS,
     QUAT_WB,
-    V_ARMS,
     V_LEGS,
-    V_WB,
-    W_WB,
     JointGroupCommand,
 )
-from pr2_drake.robot.model import BASE_BODY, KuavoMaps, add_kuavo
+from pr2_drake.robot.model import KuavoMaps, add_kuavo
 from pr2_drake.robot.params import load_robot_params
 
 

@@ -27,7 +27,7 @@ Other detectors (learned, VLM) plug in through :class:`ObjectFinder`.
 """
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional, Protocol
 
