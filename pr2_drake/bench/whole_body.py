@@ -17,8 +17,13 @@ Flat ground, discrete SAP 1 ms, the walking controller with the arms in the QP
   f (z_H - z_ground), must be met at that instant by m g times the CoM's distance from the
   centre of pressure, at most half a sole length (0.075 m) until the CoM has moved; for this
   34.5 kg robot and hand height that is about 35 N forward. Sideways the stance width gives
-  more. Beyond that a step or a hip strategy would be needed (neither is in the controller);
-  a ramped force is leaned against as it grows;
+  more. A ramped force is leaned against as it grows, up to what the soles allow: the CoM at
+  ``gait.lean_margin`` inside the heel points and the centre of pressure at the toe points,
+  m g (0.13 m - lean_margin) / (z_H - z_ground), about 52 N at 0.02 m, so 50 N forward has
+  no margin left (it holds with lean_margin 0, falls with 0.01). A step does not extend
+  that: KUAVO's line soles, side by side or split, span a parallelogram whose length along
+  the heading is one sole's 0.13 m at every point across it. What would: longer soles or
+  turning side-on to the force;
 - hand tracking: targets on a grid in front of the left shoulder, one after the other (1.5 s
   each); the error at the end of each (median and max) [cm];
 - reach: the hand target moved forward (and, separately, down) in 2 cm steps until the hand
