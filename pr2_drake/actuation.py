@@ -141,6 +141,20 @@ class ActuationAdapter(LeafSystem):
             effort = stiffness * (values - q) - damping * v
         return np.clip(effort, -g["limit"], g["limit"])
 
+    def gains_in_effect(self, context) -> tuple[np.ndarray, np.ndarray]:
+        """(stiffness [Nm/rad], damping [Nm s/rad]), each (18,): arms then legs in the
+        original order, as the spring-damper applies them now: the group's current command's
+        gains if it carries them, else the defaults, capped at the stable limits."""
+        k, d = [], []
+        for g in self._group_list:
+            stiffness, damping = g["stiffness"], g["damping"]
+            port = g["port"]
+            if port.HasValue(context):
+                _, _, stiffness, damping = self._prepared(port.Eval(context), g)
+            k.append(np.broadcast_to(stiffness, (g["n"],)))
+            d.append(np.broadcast_to(damping, (g["n"],)))
+        return np.concatenate(k), np.concatenate(d)
+
     @staticmethod
     def _cap(g: dict, gains: np.ndarray, limit: str) -> np.ndarray:
         capped = np.minimum(gains, g[limit])

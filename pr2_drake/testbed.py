@@ -286,6 +286,13 @@ class Testbed(Diagram):
         arms, legs = inertia[:n_arms], inertia[n_arms:]
         return {"arms": (arms / dt**2, arms / dt), "legs": (legs / dt**2, legs / dt)}
 
+    def joint_gains(self, context) -> tuple[np.ndarray, np.ndarray]:
+        """The spring-damper gains in effect, (stiffness (18) [Nm/rad], damping (18)
+        [Nm s/rad]), arms then legs in the original order, in this testbed ``context`` (see
+        :meth:`pr2_drake.actuation.ActuationAdapter.gains_in_effect`)."""
+        adapter = self.GetSubsystemByName("actuation")
+        return adapter.gains_in_effect(self.GetSubsystemContext(adapter, context))
+
     # -- conveniences -------------------------------------------------------------------------
     def has_camera(self) -> bool:
         return self.camera.enabled
