@@ -193,6 +193,7 @@ class Testbed(Diagram):
         builder.Connect(adapter.GetOutputPort("actuation"), plant.get_actuation_input_port(self.robot))
         builder.ExportInput(adapter.GetInputPort("arms_command"), "arms_command")
         builder.ExportInput(adapter.GetInputPort("legs_command"), "legs_command")
+        self._actuation = adapter
         # Applied efforts in the original order: the plant's sampled net actuation of the last
         # step (no direct feedthrough, so joint_state -> controller -> command is no loop).
         n_act = len(maps.actuators)
@@ -290,7 +291,7 @@ class Testbed(Diagram):
         """The spring-damper gains in effect, (stiffness (18) [Nm/rad], damping (18)
         [Nm s/rad]), arms then legs in the original order, in this testbed ``context`` (see
         :meth:`pr2_drake.actuation.ActuationAdapter.gains_in_effect`)."""
-        adapter = self.GetSubsystemByName("actuation")
+        adapter = self._actuation
         return adapter.gains_in_effect(self.GetSubsystemContext(adapter, context))
 
     # -- conveniences -------------------------------------------------------------------------
