@@ -9,6 +9,7 @@
 Every episode is a :class:`pr2_drake.scenario.Scenario`: the YAML file, then the flags, then
 the ``--set`` overrides.
     pr2-drake compete SUBMISSIONS_DIR --tasks all|1,3 --seeds A:B [--jobs J] --out DIR
+                      [--backend local|ray] [--ray-address ADDR]
     pr2-drake leaderboard DIR
     pr2-drake controller-server [--port 8800] [--host 127.0.0.1] [--overrides YAML]
                                 [--terrain flat|rough]
@@ -270,16 +271,14 @@ def cmd_compete(args) -> int:
     from pr2_drake.compete.runner import parse_tasks, run_competition, with_limits
     from pr2_drake.compete.sandbox import SandboxLimits
 
-    if args.backend != "local":
-        raise SystemExit("pr2-drake compete: --backend ray is not implemented yet; use "
-                         "--backend local (the default) with --jobs")
     tasks = parse_tasks(args.tasks)
     seeds = _parse_seeds(args.seeds)
     limits = with_limits(SandboxLimits(), step_seconds=args.step_budget,
                          episode_seconds=args.episode_wall, memory_mb=args.memory_mb,
                          isolation=args.isolation)
     rows = run_competition(args.submissions, tasks, seeds, args.out, jobs=max(1, args.jobs),
-                           seconds=args.seconds, limits=limits)
+                           seconds=args.seconds, limits=limits, backend=args.backend,
+                           ray_address=args.ray_address)
     print(f"{len(rows)} episodes in {args.out}/results.json and results.csv; "
           f"`pr2-drake leaderboard {args.out}` ranks them")
     return 0
@@ -374,7 +373,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--memory-mb", type=int, help="agent memory [MiB] (default 4096)")
     p.add_argument("--isolation", choices=("auto", "bwrap", "none"),
                    help="auto: bubblewrap where it works (default)")
-    p.add_argument("--backend", choices=("local", "ray"), default="local")
+    p.add_argument("--backend", choices=("local", "ray"), default="local",
+                   help="local processes (default) or Ray tasks (pip install 'pr2-drake[ray]')")
+    p.add_argument("--ray-address", metavar="ADDR",
+                   help="with --backend ray: a running cluster (e.g. ray://head:10001, auto); "
+                        "default: a local Ray with --jobs CPUs")
     p.set_defaults(func=cmd_compete)
 
     p = sub.add_parser("leaderboard", help="rank a compete results folder; tables and plots")
