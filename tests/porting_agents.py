@@ -26,3 +26,19 @@ class OriginalKeysAgent:
         q = agent["joint_state"]["legs_positions"]
         return {"legs": {"ctrl_mode": "position", "joint_values": q, "stiffness": [],
                          "dampings": []}}
+
+
+class InProcessWalker:
+    """An original-style solver that gets its torques from
+    :class:`pr2_drake.porting.controller_server.InProcessClient` (no socket: the sandbox
+    refuses them)."""
+
+    def __init__(self):
+        from pr2_drake.porting.controller_server import InProcessClient
+
+        self.client = InProcessClient()
+
+    def next_action(self, obs):
+        reply = self.client.get_cmd(obs, 0.2, 0.0, 0.0, -1)
+        return {"legs": {"ctrl_mode": reply["mode"], "joint_values": reply["effort"],
+                         "stiffness": [], "dampings": []}}

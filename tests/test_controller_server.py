@@ -182,3 +182,16 @@ def test_the_sandboxed_observation_carries_the_original_keys():
                                        "OriginalKeysAgent"),
                               limits=SandboxLimits(step_seconds=1.0, startup_seconds=60.0))
     assert r["termination"] == "timeout" and r["steps"] == 5, r
+
+
+def test_a_sandboxed_solver_uses_the_in_process_client():
+    """In ``compete`` the agent's sockets are refused; the in-process client answers the same
+    calls there (and its replies are the server's: see above)."""
+    from pr2_drake.compete.proxy import run_sandboxed_episode
+    from pr2_drake.compete.sandbox import SandboxLimits
+
+    agent = Path(__file__).with_name("porting_agents.py")
+    r = run_sandboxed_episode(Scenario(task=1, seed=0, seconds=0.3,
+                                       agent=f"{agent}:InProcessWalker"),
+                              limits=SandboxLimits(step_seconds=2.0, startup_seconds=60.0))
+    assert r["termination"] == "timeout" and r["steps"] == 300, r

@@ -376,7 +376,12 @@ class ControllerServer:
             return {"error": f"controller: {type(e).__name__}: {' '.join(str(e).split())}"}
 
     def _reply(self, conn: socket.socket, reply: dict[str, Any]) -> None:
-        conn.sendall(encode(reply))
+        try:
+            data = encode(reply)
+        except (ValueError, TypeError) as e:  # e.g. a non-finite torque: say so, keep serving
+            self.errors += 1
+            data = encode({"error": f"controller: reply not encodable: {e}"})
+        conn.sendall(data)
         self.requests += 1
 
     def _say(self, line: str) -> None:
