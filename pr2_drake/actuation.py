@@ -82,6 +82,7 @@ class ActuationAdapter(LeafSystem):
         for g in self._groups.values():
             g["neg_limit"] = -g["limit"]
         self._group_list = list(self._groups.values())
+        self._gains_cache = None
         self.DeclareVectorOutputPort("actuation", self._n_act, weak_calc(self._calc_actuation))
 
     def _calc_actuation(self, context, output: BasicVector) -> None:
@@ -140,6 +141,25 @@ class ActuationAdapter(LeafSystem):
         else:
             effort = stiffness * (values - q) - damping * v
         return np.clip(effort, -g["limit"], g["limit"])
+
+    def gains_in_effect(self, context) -> tuple[np.ndarray, np.ndarray]:
+        """(stiffness [Nm/rad], damping [Nm s/rad]), each (18,): arms then legs in the
+        original order, as the spring-damper applies them now: the group's current command's
+        gains if it carries them, else the defaults, capped at the stable limits."""
+        cmds = [g["port"].Eval(context) if g["port"].HasValue(context) else None
+                for g in self._group_list]
+        cached = self._gains_cache
+        if cached is not None and all(a is b for a, b in zip(cached[0], cmds)):
+            return cached[1].copy(), cached[2].copy()  # same command objects: same gains
+        k, d = [], []
+        for g, cmd in zip(self._group_list, cmds):
+            stiffness, damping = g["stiffness"], g["damping"]
+            if cmd is not None:
+                _, _, stiffness, damping = self._prepared(cmd, g)
+            k.append(np.broadcast_to(stiffness, (g["n"],)))
+            d.append(np.broadcast_to(damping, (g["n"],)))
+        self._gains_cache = (cmds, np.concatenate(k), np.concatenate(d))
+        return self._gains_cache[1].copy(), self._gains_cache[2].copy()
 
     @staticmethod
     def _cap(g: dict, gains: np.ndarray, limit: str) -> np.ndarray:

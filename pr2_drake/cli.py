@@ -9,7 +9,10 @@
 Every episode is a :class:`pr2_drake.scenario.Scenario`: the YAML file, then the flags, then
 the ``--set`` overrides.
     pr2-drake compete SUBMISSIONS_DIR --tasks all|1,3 --seeds A:B [--jobs J] --out DIR
+                      [--backend local|ray] [--ray-address ADDR]
     pr2-drake leaderboard DIR
+    pr2-drake controller-server [--port 8800] [--host 127.0.0.1] [--overrides YAML]
+                                [--terrain flat|rough]
     pr2-drake bench {sim,camera,startup,walking,whole-body,perception,...} [...]
     pr2-drake tasks
 
@@ -268,16 +271,14 @@ def cmd_compete(args) -> int:
     from pr2_drake.compete.runner import parse_tasks, run_competition, with_limits
     from pr2_drake.compete.sandbox import SandboxLimits
 
-    if args.backend != "local":
-        raise SystemExit("pr2-drake compete: --backend ray is not implemented yet; use "
-                         "--backend local (the default) with --jobs")
     tasks = parse_tasks(args.tasks)
     seeds = _parse_seeds(args.seeds)
     limits = with_limits(SandboxLimits(), step_seconds=args.step_budget,
                          episode_seconds=args.episode_wall, memory_mb=args.memory_mb,
                          isolation=args.isolation)
     rows = run_competition(args.submissions, tasks, seeds, args.out, jobs=max(1, args.jobs),
-                           seconds=args.seconds, limits=limits)
+                           seconds=args.seconds, limits=limits, backend=args.backend,
+                           ray_address=args.ray_address)
     print(f"{len(rows)} episodes in {args.out}/results.json and results.csv; "
           f"`pr2-drake leaderboard {args.out}` ranks them")
     return 0
@@ -287,6 +288,27 @@ def cmd_leaderboard(args) -> int:
     from pr2_drake.compete.leaderboard import write_leaderboard
 
     print(write_leaderboard(args.dir, plots=not args.no_plots))
+    return 0
+
+
+def cmd_controller_server(args) -> int:
+    from pr2_drake.porting.controller_server import ControllerServer, ControllerServerConfig
+
+    config = ControllerServerConfig(terrain=args.terrain, request_period=args.request_period,
+                                    jump_apex=args.jump_apex)
+    if args.walking:
+        config.walking = args.walking
+    if args.overrides:
+        config.overrides = args.overrides
+    if args.jumping:
+        config.jumping = args.jumping
+    server = ControllerServer(args.host, args.port, config)
+    host, port = server.address
+    print(f"controller-server: listening on {host}:{port} (Ctrl-C stops)", flush=True)
+    try:
+        server.serve_forever()
+    finally:
+        server.close()
     return 0
 
 
@@ -351,13 +373,36 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--memory-mb", type=int, help="agent memory [MiB] (default 4096)")
     p.add_argument("--isolation", choices=("auto", "bwrap", "none"),
                    help="auto: bubblewrap where it works (default)")
-    p.add_argument("--backend", choices=("local", "ray"), default="local")
+    p.add_argument("--backend", choices=("local", "ray"), default="local",
+                   help="local processes (default) or Ray tasks (pip install 'pr2-drake[ray]')")
+    p.add_argument("--ray-address", metavar="ADDR",
+                   help="with --backend ray: a running cluster (e.g. ray://head:10001, auto); "
+                        "default: a local Ray with --jobs CPUs")
     p.set_defaults(func=cmd_compete)
 
     p = sub.add_parser("leaderboard", help="rank a compete results folder; tables and plots")
     p.add_argument("dir", metavar="DIR", help="the --out folder of pr2-drake compete")
     p.add_argument("--no-plots", action="store_true", help="tables only")
     p.set_defaults(func=cmd_leaderboard)
+
+    p = sub.add_parser("controller-server",
+                       help="the original PR2 walking controller's TCP protocol, answered by "
+                            "the built-in walking/jump controller")
+    p.add_argument("--port", type=int, default=8800, help="TCP port (0: a free one; default 8800)")
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
+    p.add_argument("--walking", metavar="YAML", help="walking parameters "
+                                                     "(default controllers/walking.yaml)")
+    p.add_argument("--overrides", metavar="YAML", help="partial walking YAML on top, e.g. "
+                                                       "controllers/walking_rough.yaml")
+    p.add_argument("--terrain", choices=("flat", "rough"), default="flat",
+                   help="footholds: flat, or rough (unknown stones, task 1)")
+    p.add_argument("--jumping", metavar="YAML", help="jump parameters "
+                                                     "(default controllers/jumping.yaml)")
+    p.add_argument("--jump-apex", type=float, default=0.18,
+                   help="CoM rise of a change_state 2 jump [m] (default 0.18)")
+    p.add_argument("--request-period", type=float, default=0.001,
+                   help="simulated seconds per request without a 'time' field (default 0.001)")
+    p.set_defaults(func=cmd_controller_server)
 
     from pr2_drake.benchmarks import BENCHMARKS
 

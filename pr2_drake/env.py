@@ -154,10 +154,19 @@ class Env:
     def observation(self) -> dict[str, Any]:
         """The observation dictionary at the current time."""
         ctx, tb = self._episode.tb_context, self.testbed
-        values = {name: self._ports[name].Eval(ctx) for name in self.observation_ports()}
         X = tb.X_WB_start
-        return observation_from_ports(values, ctx.get_time(), tb.scene.priors,
+        return observation_from_ports(self.observation_values(), ctx.get_time(), tb.scene.priors,
                                       X.translation(), X.rotation().ToQuaternion().wxyz())
+
+    def observation_values(self) -> dict[str, Any]:
+        """What an observation is built from: the values of :meth:`observation_ports`, plus
+        ``sim_step`` (physics steps so far) and ``joint_gains`` (the spring-damper gains in
+        effect, :meth:`pr2_drake.testbed.Testbed.joint_gains`)."""
+        ctx, tb = self._episode.tb_context, self.testbed
+        values = {name: self._ports[name].Eval(ctx) for name in self.observation_ports()}
+        values["sim_step"] = int(round(ctx.get_time() / tb.config.time_step))
+        values["joint_gains"] = tb.joint_gains(ctx)
+        return values
 
     def observation_ports(self) -> tuple[str, ...]:
         """The testbed outputs an observation is made of (see

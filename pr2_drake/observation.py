@@ -15,6 +15,26 @@ Observation (``obs``)::
     obs["goal"], ...             the task's priors and feedback, under their own keys
                                  (``goal`` repeats ``goal_center`` where a task has one)
 
+The original platform's keys and places, in addition (a solver written for it reads them)::
+
+    obs["current_sim_step"]      int: physics steps since the episode started
+                                 (round(time / physics time step); 0 in the first observation),
+                                 the original's step counter
+    obs["agent"]["start_pos"], obs["agent"]["start_orient"]   the start pose again, where the
+                                 original put it (position [m]; quaternion w, x, y, z)
+    obs["agent"]["stiffness"], obs["agent"]["dampings"]   (18,) the spring-damper gains in
+                                 effect per joint [Nm/rad], [Nm s/rad], arms (8) then legs (10)
+                                 in the original order: those of the group's last command if it
+                                 carried gains, else the testbed's defaults (``arm_gains``,
+                                 ``leg_gains``), capped for stability as the actuation applies
+                                 them (:class:`pr2_drake.actuation.ActuationAdapter`); they act
+                                 in position and velocity modes only
+    obs["obstacle"]              task 3: {"position": the bar centre (3) [m], "orientation":
+                                 the bar's (fixed) orientation (w, x, y, z)}, world frame, from
+                                 the task feedback (``bar_position``, ``bar_orientation``)
+    obs["goal"]                  task 6: the instruction sentence (the original's ``goal``
+                                 text; the same as ``language_instruction``)
+
 Action::
 
     {"arms": {"ctrl_mode": "position" | "velocity" | "effort", "joint_values": [8],
@@ -25,7 +45,8 @@ Action::
 
 All angles in rad, positions in m, in the world frame; joints in the original order
 (:data:`pr2_drake.robot.params.ARM_JOINTS`, :data:`LEG_JOINTS`). A malformed action is a
-ValueError naming the key path and the fault (see :func:`parse_action`).
+ValueError naming the key path and the fault (see :func:`parse_action`). Empty ``stiffness`` /
+``dampings`` lists (what the original's solvers send with effort commands) mean None.
 """
 
 from __future__ import annotations
@@ -83,13 +104,25 @@ def observation_from_ports(values: dict[str, Any], time: float, priors: dict[str
                            start_pos: np.ndarray, start_orient: np.ndarray) -> dict[str, Any]:
     """The observation dictionary from the testbed's output values (``joint_state``,
     ``body_state``, ``pick_state``; ``rgbd`` where there is a camera; ``task_feedback``,
-    ``instruction`` and ``score`` where there is a task), the time [s], the task's priors and
-    the start pose (position [m], quaternion w, x, y, z). :meth:`pr2_drake.env.Env.observation`
-    and the competition sandbox both build it here."""
+    ``instruction`` and ``score`` where there is a task; ``sim_step`` (int) and
+    ``joint_gains`` ((stiffness (18), damping (18)), see
+    :meth:`pr2_drake.testbed.Testbed.joint_gains`) where known), the time [s], the task's priors
+    and the start pose (position [m], quaternion w, x, y, z).
+    :meth:`pr2_drake.env.Env.observation` and the competition sandbox both build it here."""
     obs: dict[str, Any] = dict(priors)
     if "goal_center" in obs:  # the original platform's key for the goal prior
         obs["goal"] = obs["goal_center"]
+    elif isinstance(obs.get("instruction"), str):  # task 6: the original's goal is the sentence
+        obs["goal"] = obs["instruction"]
     obs["agent"] = joint_and_body_obs(values["joint_state"], values["body_state"])
+    obs["agent"]["start_pos"] = np.array(start_pos, dtype=float)
+    obs["agent"]["start_orient"] = np.array(start_orient, dtype=float)
+    gains = values.get("joint_gains")
+    if gains is not None:
+        obs["agent"]["stiffness"] = np.array(gains[0], dtype=float)
+        obs["agent"]["dampings"] = np.array(gains[1], dtype=float)
+    if values.get("sim_step") is not None:
+        obs["current_sim_step"] = int(values["sim_step"])
     pick_state = values["pick_state"]
     obs["pick"] = bool(pick_state.attached)
     obs["pick_state"] = {"hand": pick_state.hand, "object": pick_state.object}
@@ -101,9 +134,16 @@ def observation_from_ports(values: dict[str, Any], time: float, priors: dict[str
         frame = values["rgbd"]
         obs["cam"] = {"rgb": frame.color, "distance_to_image_plane": frame.depth}
     if "task_feedback" in values:
-        obs.update(values["task_feedback"])
+        feedback = values["task_feedback"]
+        obs.update(feedback)
         obs["language_instruction"] = values["instruction"]
         obs["score"] = float(values["score"][0])
+        if "bar_position" in feedback:  # task 3: the original's obstacle entry
+            obs["obstacle"] = {
+                "position": np.array(feedback["bar_position"], dtype=float),
+                "orientation": np.array(feedback.get("bar_orientation", (1.0, 0.0, 0.0, 0.0)),
+                                        dtype=float),
+            }
     return obs
 
 
@@ -150,8 +190,8 @@ def group_command(action: dict[str, Any], group: str) -> JointGroupCommand:
 
     def gains(key):
         value = entry.get(key)
-        if value is None:
-            return None
+        if value is None or (isinstance(value, (list, tuple, np.ndarray)) and len(value) == 0):
+            return None  # the original's solvers send [] with effort commands
         return real_vector(value, n, f"{where}[{key!r}]", non_negative=True)
 
     return JointGroupCommand(

@@ -193,6 +193,7 @@ class Testbed(Diagram):
         builder.Connect(adapter.GetOutputPort("actuation"), plant.get_actuation_input_port(self.robot))
         builder.ExportInput(adapter.GetInputPort("arms_command"), "arms_command")
         builder.ExportInput(adapter.GetInputPort("legs_command"), "legs_command")
+        self._actuation = adapter
         # Applied efforts in the original order: the plant's sampled net actuation of the last
         # step (no direct feedthrough, so joint_state -> controller -> command is no loop).
         n_act = len(maps.actuators)
@@ -285,6 +286,13 @@ class Testbed(Diagram):
         n_arms = len(self.params.group("arms"))
         arms, legs = inertia[:n_arms], inertia[n_arms:]
         return {"arms": (arms / dt**2, arms / dt), "legs": (legs / dt**2, legs / dt)}
+
+    def joint_gains(self, context) -> tuple[np.ndarray, np.ndarray]:
+        """The spring-damper gains in effect, (stiffness (18) [Nm/rad], damping (18)
+        [Nm s/rad]), arms then legs in the original order, in this testbed ``context`` (see
+        :meth:`pr2_drake.actuation.ActuationAdapter.gains_in_effect`)."""
+        adapter = self._actuation
+        return adapter.gains_in_effect(self.GetSubsystemContext(adapter, context))
 
     # -- conveniences -------------------------------------------------------------------------
     def has_camera(self) -> bool:

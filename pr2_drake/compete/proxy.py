@@ -87,14 +87,13 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
         if system and len(inputs) != len(asked):  # the parent decides what crosses
             raise AgentFault("agent_error", f"the agent reads ports that are not offered: "
                                             f"{str(asked)[:200]}; offered: {ALLOWED_INPUTS}")
-        obs_ports = {n: tb.GetOutputPort(n) for n in env.observation_ports()}
         if system:  # the outputs of its default state: the inputs of its initialization
             reply, _ = agent.request({"op": "peek", "ports": _values(inputs, ctx)},
                                      limits.startup_seconds)
             _apply(env, reply)
         else:
             agent.request({"op": "reset", "time": episode.time,
-                           "ports": _values(obs_ports, ctx)}, limits.startup_seconds)
+                           "ports": env.observation_values()}, limits.startup_seconds)
         done = episode.status.done
         deadline = time.perf_counter() + limits.episode_seconds  # startup has its own budget
         tick0 = round(episode.time / env.control_dt)
@@ -108,7 +107,7 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
                 msg = {"op": "tick", "time": t, "ports": _values(inputs, ctx), "prev": prev,
                        "t_prev": t_prev}
             else:
-                msg = {"op": "act", "time": t, "ports": _values(obs_ports, ctx)}
+                msg = {"op": "act", "time": t, "ports": env.observation_values()}
             reply, rtt = agent.request(msg, limits.step_seconds)
             rtts.append(rtt)
             c = reply.get("compute")

@@ -10,6 +10,13 @@ The subfolder is copied into the sandbox and put on its agent's import path (its
 Results go to ``OUT/episodes.jsonl`` as each episode ends (so a killed run resumes where it
 stopped: finished episodes are not run again), then ``OUT/results.json`` and
 ``OUT/results.csv`` (one row per episode).
+
+Backends (``jobs`` episodes at once on either): ``local`` runs episodes in this process or a
+pool of spawned processes; ``ray`` sends each episode as a Ray task (:func:`run_job`, the same
+function: the episode's agent is still sandboxed in a child process of the worker) to a local
+Ray started for the run, or to a running cluster (``ray_address``, e.g. ``ray://head:10001`` or
+``auto``). On a cluster every node needs pr2-drake (and Ray) installed and the submissions
+folder at the same path (a shared file system); results are written here by the driver.
 """
 
 from __future__ import annotations
@@ -164,11 +171,30 @@ def read_done(path: Path) -> dict[tuple[str, int, int], dict[str, Any]]:
     return done
 
 
+BACKENDS = ("local", "ray")
+
+
 def run_competition(root: str | Path, tasks: Iterable[int], seeds: Iterable[int],
                     out: str | Path, *, jobs: int = 1, seconds: float | None = None,
                     limits: SandboxLimits | None = None,
-                    progress: TextIO | None = sys.stderr) -> list[dict[str, Any]]:
-    """Run (or resume) a competition; returns all rows and writes the results files."""
+                    progress: TextIO | None = sys.stderr, backend: str = "local",
+                    ray_address: str | None = None) -> list[dict[str, Any]]:
+    """Run (or resume) a competition; returns all rows and writes the results files.
+
+    Args:
+        backend: "local" (processes here) or "ray" (Ray tasks; see the module docstring).
+        ray_address: with ``backend="ray"``, a running cluster's address (None: start a local
+            Ray with ``jobs`` CPUs for this run).
+
+    Raises:
+        ValueError: a bad folder or submission, an unknown backend, or Ray not installed.
+    """
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    if ray_address is not None and backend != "ray":
+        raise ValueError("ray_address (--ray-address) needs backend 'ray'")
+    if backend == "ray":
+        _import_ray()
     limits = limits or SandboxLimits()
     subs = load_submissions(root)
     out = Path(out)
@@ -182,10 +208,13 @@ def run_competition(root: str | Path, tasks: Iterable[int], seeds: Iterable[int]
     say = (lambda text: print(text, file=progress, flush=True)) if progress else (lambda _: 0)
     say(isolation_note(limits))
     say(f"{len(subs)} submissions, tasks {list(tasks)}, seeds {list(seeds)}: "
-        f"{len(done)} episodes done before, {len(todo)} to run with {jobs} job(s)")
+        f"{len(done)} episodes done before, {len(todo)} to run with {jobs} job(s)"
+        + (f" on Ray ({ray_address or 'local'})" if backend == "ray" else ""))
     start = time.perf_counter()
+    results = (_ray_results(todo, jobs, ray_address) if backend == "ray"
+               else _results(todo, jobs))
     with open(log, "a") as f:
-        for i, row in enumerate(_results(todo, jobs), 1):
+        for i, row in enumerate(results, 1):
             f.write(json.dumps(row) + "\n")
             f.flush()
             os.fsync(f.fileno())
@@ -212,6 +241,43 @@ def _results(todo: list[Job], jobs: int):
         futures = [pool.submit(run_job, j) for j in todo]
         for fut in as_completed(futures):
             yield fut.result()
+
+
+def _import_ray():
+    try:
+        import ray
+    except ImportError:
+        raise ValueError("--backend ray needs Ray: pip install 'pr2-drake[ray]' (or 'ray')") \
+            from None
+    return ray
+
+
+def _ray_results(todo: list[Job], jobs: int, address: str | None):
+    """Rows of ``todo`` run as Ray tasks, at most ``jobs`` in flight, as they finish."""
+    if not todo:
+        return
+    ray = _import_ray()
+    started = False
+    if not ray.is_initialized():
+        if address is None:  # a local Ray for this run; the workers see our import path
+            ray.init(num_cpus=max(1, jobs), include_dashboard=False, logging_level="ERROR",
+                     runtime_env={"env_vars": {"PYTHONPATH": os.pathsep.join(
+                         p for p in sys.path if p)}})
+        else:
+            ray.init(address=address, logging_level="ERROR")
+        started = True
+    try:
+        task = ray.remote(num_cpus=1, max_retries=0)(run_job)
+        queue = list(todo)
+        pending = []
+        while queue or pending:
+            while queue and len(pending) < max(1, jobs):
+                pending.append(task.remote(queue.pop(0)))
+            ready, pending = ray.wait(pending, num_returns=1)
+            yield ray.get(ready[0])
+    finally:
+        if started:
+            ray.shutdown()
 
 
 def csv_row(r: dict[str, Any]) -> dict[str, Any]:

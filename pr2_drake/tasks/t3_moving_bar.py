@@ -33,7 +33,9 @@ jump after a step gives 15, not 25). The episode is *complete* when the jump is 
 more to gain), or when the bar has stopped, the step is earned and no jump is pending. Otherwise
 it runs until it falls, leaves the arena (3 x 3 m) or times out (4 min).
 
-Feedback: ``bar_position`` (bar centre, world, m) and ``bar_velocity`` (world, m/s).
+Feedback: ``bar_position`` (bar centre, world, m), ``bar_velocity`` (world, m/s) and
+``bar_orientation`` (the bar's fixed orientation in world, quaternion w, x, y, z: its length
+along the track frame's x, as the YAML lays it out).
 Priors: ``bar_id`` (the bar body's name) and ``bar_size`` (m). Figures not in TASKS.md (bar
 size, clearance, start delay, settle time, contact gap, arena) are our choices, in the YAML.
 """
@@ -160,6 +162,8 @@ class MovingBarReferee(Referee):
         self.layout: BarLayout = scene.data["layout"]
         self._bar_index = plant.GetBodyByName(self.layout.name).index()
         self._slider_index = plant.GetJointByName(f"{self.layout.name}_slider").index()
+        # The slider keeps the bar's orientation that of the track frame.
+        self._bar_orientation = self.layout.X_WTrack().rotation().ToQuaternion().wxyz()
         self.settle_time = float(spec.scene["settle_time"])
         self.contact_gap = float(spec.scene["contact_gap"])
         self.robot_bodies = frozenset(plant.GetBodyIndices(robot))
@@ -250,7 +254,8 @@ class MovingBarReferee(Referee):
         q = x[self.slider.position_start()]
         v = x[self.plant.num_positions() + self.slider.velocity_start()]
         d = np.array([*self.layout.direction, 0.0])
-        return {"bar_position": self.layout.center(q), "bar_velocity": v * d}
+        return {"bar_position": self.layout.center(q), "bar_velocity": v * d,
+                "bar_orientation": self._bar_orientation}
 
     def instruction(self) -> str:
         return "Get over the moving bar without touching it: step over it or jump over it."
