@@ -75,7 +75,7 @@ def _plan(terrain, x0=0.55, steps=24, speed=0.25, params=None):
     return out
 
 
-@pytest.mark.parametrize("height", [0.05, 0.10, 0.15])
+@pytest.mark.parametrize("height", [0.05, 0.10, 0.12])
 def test_footholds_land_on_treads_and_step_to_over_each_riser(height):
     terrain = stairs_terrain(1.0, 2, height, 0.40, 2.0, floor_length=1.2, down=True)
     params = TreadFootstepPlanner(PARAMS.gait, 0.01, terrain).params

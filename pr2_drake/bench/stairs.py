@@ -23,13 +23,15 @@ floor / going down, which riser, sim time) and the first sign of trouble in the 
 or toe off an edge, a sole off the side, the DCM outside the support); then the highest riser
 climbed up and down without a fall in all repeats.
 
-What limits step height now: the planner refuses risers over 0.15 m
-(controllers/tread_planner.yaml ``max_step_height``). Below that, measured with 5 repeats:
-0.10 m and 0.12 m, 2 and 4 steps, up and down without a fall. With the CoM-height weight at
-300 (before) 0.12 m x 4 fell 2/5 going up: the stance knee reached its limit while the swing
-sole lifted fast over the riser (the CoM overshot its height target by ~5 cm), or the rear toe
-pitched down at lift-off and caught the nosing; 0.15 m risers (5/5 falls before) are not
-measured again. :class:`StairsSim` (the closed loop on a staircase) is also used by
+What limits step height now: the planner refuses risers over 0.12 m
+(controllers/tread_planner.yaml ``max_step_height``), the highest measured without a fall:
+``pr2-drake bench stairs --max-step-height 0.15`` (5 repeats, up then down): 0.05, 0.10 and
+0.12 m, 2 and 4 steps, 0/5 falls each; 0.15 m, 2 and 4 steps, 5/5 falls, all at the first
+riser going up: the swing toe caught on the nosing (8 of 10) or the stance knee at its limit
+(2 of 10). With the CoM-height weight at 300 (before) 0.12 m x 4 fell 2/5 going up: the
+stance knee reached its limit while the swing sole lifted fast over the riser (the CoM
+overshot its height target by ~5 cm), or the rear toe pitched down at lift-off and caught the
+nosing. :class:`StairsSim` (the closed loop on a staircase) is also used by
 tests/test_stairs.py and notebooks/05_stairs.ipynb.
 """
 
@@ -39,7 +41,7 @@ import argparse
 import math
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from pydrake.geometry import Box
@@ -50,7 +52,7 @@ from pydrake.systems.framework import DiagramBuilder
 
 from pr2_drake.controllers.posture import ArmPosture
 from pr2_drake.controllers.terrain_model import PatchTerrain, stairs_terrain
-from pr2_drake.controllers.tread_steps import TreadFootstepPlanner
+from pr2_drake.controllers.tread_steps import TreadFootstepPlanner, TreadPlannerParams
 from pr2_drake.controllers.walking import WalkingController
 from pr2_drake.controllers.walking_params import WalkingParams
 from pr2_drake.robot.model import BASE_BODY
@@ -359,17 +361,24 @@ def starts(repeats: int, seed: int = 0) -> list[StartPose]:
 
 
 def run_stairs(height: float, count: int, start: StartPose, speed: float = 0.25,
-               meshcat=None, lane_gain: float = LANE_GAIN, overrides: str | None = None
-               ) -> tuple[bool, float, float, Fall | None]:
+               meshcat=None, lane_gain: float = LANE_GAIN, overrides: str | None = None,
+               max_step_height: float | None = None) -> tuple[bool, float, float, Fall | None]:
     """Up then down one staircase: (no fall, simulated time [s], real-time factor, where and
     why it failed or None). ``overrides``: a YAML file of walking parameters applied after
-    controllers/walking_stairs.yaml (tuning)."""
+    controllers/walking_stairs.yaml (tuning); ``max_step_height`` [m]: the planner's limit in
+    place of controllers/tread_planner.yaml's (to measure beyond it).
+
+    Raises:
+        ValueError: a riser taller than the planner's limit (the planner refuses it)."""
     terrain = stairs_terrain(START_X, count, height, TREAD, 2.0, floor_length=FLOOR_LENGTH,
                              down=True)
     params = WalkingParams.load().with_overrides(WALKING_OVERRIDES)
     if overrides:
         params = params.with_overrides(overrides)
-    sim = StairsSim(terrain, start, params=params, meshcat=meshcat)
+    planner = TreadPlannerParams.load()
+    if max_step_height is not None:
+        planner = replace(planner, max_step_height=float(max_step_height))
+    sim = StairsSim(terrain, start, params=params, planner_params=planner, meshcat=meshcat)
     x_end = START_X + 2 * count * TREAD + FLOOR_LENGTH - TREAD + 0.4
     wall = time.perf_counter()
     ok = sim.walk(speed, x_end, timeout=20.0 + 8.0 * count, lane_gain=lane_gain)
@@ -387,6 +396,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="[1/s] sideways command per m of drift from the start's y (0: none)")
     ap.add_argument("--overrides", default=None,
                     help="YAML of walking parameters applied after walking_stairs.yaml")
+    ap.add_argument("--max-step-height", type=float, default=None,
+                    help="[m] the planner's riser limit in place of tread_planner.yaml's "
+                         "(taller risers are refused; raise it to measure beyond)")
     args = ap.parse_args(argv)
     if args.repeats < 1:
         ap.error("--repeats must be at least 1")
@@ -395,18 +407,25 @@ def main(argv: list[str] | None = None) -> int:
         heights, counts, repeats = [0.10], [2], 1
     rows: list[Row] = []
     falls: list[str] = []
+    refused: set[float] = set()
     print(f"{'riser [m]':>9} {'steps':>5} {'falls':>7} {'time [s]':>9} {'RTF':>6}")
     for h in heights:
         for n in counts:
             results = []
-            for k, s in enumerate(starts(repeats)):
-                results.append(run_stairs(h, n, s, lane_gain=args.lane_gain,
-                                          overrides=args.overrides))
-                if results[-1][3] is not None:
-                    falls.append(f"  {h:.2f} m x {n}, repeat {k} (start x {s.x:+.3f} m, "
-                                 f"y {s.y:+.3f} m, yaw {math.degrees(s.yaw):+.1f} deg): "
-                                 f"{results[-1][3]}")
-                    print(falls[-1], flush=True)
+            try:
+                for k, s in enumerate(starts(repeats)):
+                    results.append(run_stairs(h, n, s, lane_gain=args.lane_gain,
+                                              overrides=args.overrides,
+                                              max_step_height=args.max_step_height))
+                    if results[-1][3] is not None:
+                        falls.append(f"  {h:.2f} m x {n}, repeat {k} (start x {s.x:+.3f} m, "
+                                     f"y {s.y:+.3f} m, yaw {math.degrees(s.yaw):+.1f} deg): "
+                                     f"{results[-1][3]}")
+                        print(falls[-1], flush=True)
+            except ValueError as e:  # the planner refuses the riser
+                print(f"{h:9.2f} {n:5d} refused: {e}", flush=True)
+                refused.add(h)
+                continue
             ok = [r for r in results if r[0]]
             row = Row(h, n, len(results) - len(ok), len(results),
                       float(np.mean([r[1] for r in ok])) if ok else float("nan"),
@@ -414,7 +433,8 @@ def main(argv: list[str] | None = None) -> int:
             rows.append(row)
             print(f"{h:9.2f} {n:5d} {row.falls:3d}/{row.repeats:<3d} {row.time:9.1f} "
                   f"{row.rtf:6.3f}", flush=True)
-    safe = [h for h in heights if all(r.falls == 0 for r in rows if r.height == h)]
+    safe = [h for h in heights
+            if h not in refused and all(r.falls == 0 for r in rows if r.height == h)]
     best = max(safe) if safe else None
     if falls:
         print("falls (where, and the first sign of trouble in the last second):")

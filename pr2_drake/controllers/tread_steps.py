@@ -64,7 +64,7 @@ class TreadPlannerParams:
 
     edge_margin: float = 0.03  # heel and toe stay this far from an edge
     clearance: float = 0.05  # swing soles clear the highest ground on their way by this
-    max_step_height: float = 0.15  # taller risers are refused
+    max_step_height: float = 0.12  # taller risers are refused
     min_progress: float = 0.03  # a step moved back must still advance this much
     approach_margin: float = 0.03  # the sole stopping short of a riser keeps its toe (heel,
     # going down) this far from the edge: room for the toe to rise before it moves on
