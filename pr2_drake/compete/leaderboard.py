@@ -149,7 +149,7 @@ def write_plots(rows: list[dict[str, Any]], tasks: list[int], table, folder: Pat
         i_top = values.index(top)
         ax.bar([i_top], [100.0], fill=False, edgecolor="tab:green", linestyle="--",
                linewidth=1.0)
-        ax.text(i_top, 97.0, "full marks", ha="center", va="top", fontsize=8,
+        ax.text(i_top, 119.0, "full marks", ha="center", va="top", fontsize=8,
                 color="tab:green")
         for b, share in zip(bars, shares):
             if share > 0:
@@ -159,7 +159,8 @@ def write_plots(rows: list[dict[str, Any]], tasks: list[int], table, folder: Pat
         ax.set_title(f"task {t} {specs[t].name} ({len(scores)} episodes)", fontsize=10)
         ax.set_xlabel("score")
         ax.set_ylabel("share of episodes [%]")
-        ax.set_ylim(0, 100)
+        ax.set_ylim(0, 120)  # room above 100 % for the labels
+        ax.set_yticks(range(0, 101, 20))
     fig.tight_layout()
     fig.savefig(out / "score_distribution.png", dpi=100)
     plt.close(fig)
@@ -175,11 +176,12 @@ def write_plots(rows: list[dict[str, Any]], tasks: list[int], table, folder: Pat
         limit = float(specs[t].time_limit)
         if keys:
             box = ax.boxplot([groups[k] for k in keys], patch_artist=True, widths=0.5,
-                             showfliers=False)
+                             medianprops={"color": "black"}, showfliers=False)
             for patch, k in zip(box["boxes"], keys):
                 patch.set_facecolor("palegreen" if k >= top else "lightsteelblue")
-            for i, k in enumerate(keys, 1):  # every episode as a dot: boxes of 1-5 hide them
-                ax.plot([i] * len(groups[k]), groups[k], "k.", alpha=0.5, markersize=4)
+            for i, k in enumerate(keys, 1):  # every episode a dot: flat boxes hide them
+                ax.plot([i] * len(groups[k]), groups[k], "o", markersize=4, alpha=0.7,
+                        color="tab:green" if k >= top else "tab:blue", zorder=3)
             ax.set_xticks(range(1, len(keys) + 1),
                           [f"{k:g}\n(n={len(groups[k])})" for k in keys])
         ax.axhline(limit, color="tab:red", linestyle="--", linewidth=1.0)
