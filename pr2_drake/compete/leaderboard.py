@@ -7,11 +7,14 @@ total completion time (tasks never completed count as the task's time limit). Wr
 'pr2-drake[compete]'``), the figures of the paper in ``DIR/plots``:
 
 - ``score_distribution.png``: per task, the share of episodes at each score (full marks
-  marked), as the paper's "Performance statistics";
+  green, and outlined even when no episode earned them), as the paper's "Performance
+  statistics";
 - ``completion_times.png``: box plots of the completion time (simulated time at the end of
-  the episode) by score, per task;
+  the episode) by score, per task, every episode a dot, the task's time limit dashed;
 - ``category_points.png``: average points in locomotion (tasks 1, 3, 4, 5), manipulation
-  (2, 6) and perception (6) against the points available.
+  (2, 6) and perception (6) against the points available (mean over the submissions).
+
+Panels are laid out three a row.
 """
 
 from __future__ import annotations
@@ -106,6 +109,17 @@ def html_page(tasks: list[int], table: list[dict[str, Any]], plots: list[str]) -
             f"<th>total</th>{head}</tr>{''.join(rows)}</table>{images}</body></html>\n")
 
 
+def _grid(plt, n: int):
+    """A figure of ``n`` panels, at most three a row; returns (fig, the n axes)."""
+    cols = min(3, n)
+    rows = (n + cols - 1) // cols
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.3 * rows), squeeze=False)
+    flat = list(axes.flat)
+    for ax in flat[n:]:
+        ax.set_visible(False)
+    return fig, flat[:n]
+
+
 def write_plots(rows: list[dict[str, Any]], tasks: list[int], table, folder: Path) -> list[str]:
     """The three figures (see the module docstring); returns their paths relative to
     ``folder``. Raises ImportError without matplotlib."""
@@ -119,55 +133,91 @@ def write_plots(rows: list[dict[str, Any]], tasks: list[int], table, folder: Pat
     out = folder / "plots"
     out.mkdir(exist_ok=True)
     n = len(tasks)
-    fig, axes = plt.subplots(1, n, figsize=(3.2 * n, 3.0), squeeze=False)
-    for ax, t in zip(axes[0], tasks):
+    specs = {t: get_task(t).spec for t in tasks}
+    n_subs = len(table)
+
+    fig, axes = _grid(plt, n)
+    for ax, t in zip(axes, tasks):
         scores = [r["score"] for r in rows if int(r["task"]) == t]
-        top = float(get_task(t).spec.max_score)
+        top = float(specs[t].max_score)
         values = sorted(set(scores) | {0.0, top})
         shares = [100.0 * scores.count(v) / max(1, len(scores)) for v in values]
-        bars = ax.bar([f"{v:g}" for v in values], shares, color="tab:blue")
-        bars[values.index(top)].set_color("tab:green")
-        ax.set_title(f"task {t}")
-        ax.set_xlabel("score (green: full marks)")
-        ax.set_ylim(0, 100)
-    axes[0][0].set_ylabel("share of episodes [%]")
+        x = range(len(values))
+        colors = ["tab:green" if v == top else "tab:blue" for v in values]
+        bars = ax.bar(x, shares, color=colors)
+        # Full marks stay marked when nobody earned them: an outlined slot and its label.
+        i_top = values.index(top)
+        ax.bar([i_top], [100.0], fill=False, edgecolor="tab:green", linestyle="--",
+               linewidth=1.0)
+        ax.text(i_top, 119.0, "full marks", ha="center", va="top", fontsize=8,
+                color="tab:green")
+        for b, share in zip(bars, shares):
+            if share > 0:
+                ax.text(b.get_x() + b.get_width() / 2, share + 1.5, f"{share:.0f}%",
+                        ha="center", va="bottom", fontsize=8)
+        ax.set_xticks(list(x), [f"{v:g}" for v in values])
+        ax.set_title(f"task {t} {specs[t].name} ({len(scores)} episodes)", fontsize=10)
+        ax.set_xlabel("score")
+        ax.set_ylabel("share of episodes [%]")
+        ax.set_ylim(0, 120)  # room above 100 % for the labels
+        ax.set_yticks(range(0, 101, 20))
     fig.tight_layout()
     fig.savefig(out / "score_distribution.png", dpi=100)
     plt.close(fig)
 
-    fig, axes = plt.subplots(1, n, figsize=(3.2 * n, 3.0), squeeze=False)
-    for ax, t in zip(axes[0], tasks):
+    fig, axes = _grid(plt, n)
+    for ax, t in zip(axes, tasks):
         groups = defaultdict(list)
         for r in rows:
             if int(r["task"]) == t:
                 groups[r["score"]].append(r["sim_time"])
         keys = sorted(groups)
+        top = float(specs[t].max_score)
+        limit = float(specs[t].time_limit)
         if keys:
-            ax.boxplot([groups[k] for k in keys])
-            ax.set_xticks(range(1, len(keys) + 1), [f"{k:g}" for k in keys])
-        ax.set_title(f"task {t}")
-        ax.set_xlabel("score")
-    axes[0][0].set_ylabel("completion time [s, simulated]")
+            box = ax.boxplot([groups[k] for k in keys], patch_artist=True, widths=0.5,
+                             medianprops={"color": "black"}, showfliers=False)
+            for patch, k in zip(box["boxes"], keys):
+                patch.set_facecolor("palegreen" if k >= top else "lightsteelblue")
+            for i, k in enumerate(keys, 1):  # every episode a dot: flat boxes hide them
+                ax.plot([i] * len(groups[k]), groups[k], "o", markersize=4, alpha=0.7,
+                        color="tab:green" if k >= top else "tab:blue", zorder=3)
+            ax.set_xticks(range(1, len(keys) + 1),
+                          [f"{k:g}\n(n={len(groups[k])})" for k in keys])
+        ax.axhline(limit, color="tab:red", linestyle="--", linewidth=1.0)
+        ax.text(0.02, limit, "time limit", transform=ax.get_yaxis_transform(), fontsize=8,
+                color="tab:red", va="bottom")
+        ax.set_ylim(0, limit * 1.12)
+        ax.set_title(f"task {t} {specs[t].name}", fontsize=10)
+        ax.set_xlabel("score (green: full marks)")
+        ax.set_ylabel("completion time [s, simulated]")
     fig.tight_layout()
     fig.savefig(out / "completion_times.png", dpi=100)
     plt.close(fig)
 
-    fig, ax = plt.subplots(figsize=(5, 3))
+    fig, ax = plt.subplots(figsize=(6, 3.6))
     names, got, avail = [], [], []
     for cat, cat_tasks in CATEGORIES.items():
         present = [t for t in cat_tasks if t in tasks]
         if not present:
             continue
-        names.append(cat)
-        avail.append(sum(float(get_task(t).spec.max_score) for t in present))
-        got.append(sum(sum(e["tasks"][t]["score"] for e in table) / max(1, len(table))
+        names.append(f"{cat}\n(task{'s' if len(present) > 1 else ''} "
+                     f"{', '.join(map(str, present))})")
+        avail.append(sum(float(specs[t].max_score) for t in present))
+        got.append(sum(sum(e["tasks"][t]["score"] for e in table) / max(1, n_subs)
                        for t in present))
     x = range(len(names))
     ax.bar([i - 0.2 for i in x], avail, 0.4, label="available", color="lightgray")
-    ax.bar([i + 0.2 for i in x], got, 0.4, label="average earned", color="tab:blue")
-    ax.set_xticks(list(x), names)
+    bars = ax.bar([i + 0.2 for i in x], got, 0.4, label="average earned", color="tab:blue")
+    for b, g, a in zip(bars, got, avail):
+        ax.text(b.get_x() + b.get_width() / 2, g + 0.01 * max(avail), f"{g:.1f} / {a:g}",
+                ha="center", va="bottom", fontsize=8)
+    ax.set_xticks(list(x), names, fontsize=9)
     ax.set_ylabel("points")
-    ax.legend()
+    ax.set_ylim(0, max(avail, default=1.0) * 1.15)
+    ax.set_title(f"mean over {n_subs} submission{'s' if n_subs != 1 else ''} and the seeds"
+                 + (" (task 6 counts in two)" if 6 in tasks else ""), fontsize=10)
+    ax.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
     fig.savefig(out / "category_points.png", dpi=100)
     plt.close(fig)
