@@ -212,3 +212,14 @@ def test_approach_stopped_short_by_the_table_settles_after_a_timeout():
     assert seq.stage == Stage.APPROACH
     sim.AdvanceTo(1.0 + seq.p.approach_timeout + 0.5)
     assert seq.stage in (Stage.SETTLE, Stage.REACH)
+
+
+def test_object_models_load_from_any_working_folder(tmp_path, monkeypatch):
+    """The priors give mesh paths relative to the data root; a sandboxed agent runs elsewhere."""
+    from pr2_drake.agents.search.perception import load_object_model
+
+    monkeypatch.chdir(tmp_path)
+    model = load_object_model("cup", "models/objects/cup/cup.obj")
+    assert 0.05 < model.height < 0.3
+    with pytest.raises(FileNotFoundError, match="object model mesh of 'cup'"):
+        load_object_model("cup", "models/objects/cup/missing.obj")

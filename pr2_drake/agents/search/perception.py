@@ -152,8 +152,9 @@ def _blur(sig: np.ndarray) -> np.ndarray:
 
 
 def load_object_model(name: str, mesh: str | Path) -> ObjectModel:
-    """An :class:`ObjectModel` from an OBJ mesh and its MTL file (diffuse colours ``Kd``)."""
-    mesh = Path(mesh)
+    """An :class:`ObjectModel` from an OBJ mesh and its MTL file (diffuse colours ``Kd``);
+    a relative ``mesh`` path (as the task's priors give it) may be relative to the data root."""
+    mesh = resolve_user_path(mesh, f"object model mesh of {name!r}")
     verts, faces, mats, kd, current = [], [], [], {}, None
     for line in mesh.read_text().splitlines():
         t = line.split()
