@@ -274,7 +274,7 @@ def cmd_compete(args) -> int:
     tasks = parse_tasks(args.tasks)
     seeds = _parse_seeds(args.seeds)
     limits = with_limits(SandboxLimits(), step_seconds=args.step_budget,
-                         episode_seconds=args.episode_wall, memory_mb=args.memory_mb,
+                         step_wall_seconds=args.step_wall, episode_seconds=args.episode_wall, memory_mb=args.memory_mb,
                          isolation=args.isolation)
     rows = run_competition(args.submissions, tasks, seeds, args.out, jobs=max(1, args.jobs),
                            seconds=args.seconds, limits=limits, backend=args.backend,
@@ -366,8 +366,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="DIR", help="results folder (resumes)")
     p.add_argument("--seconds", type=float, help="cut every episode to this many simulated "
                                                  "seconds (default: the task's limit)")
-    p.add_argument("--step-budget", type=float, help="wall-clock budget of one agent step [s] "
+    p.add_argument("--step-budget", type=float, help="CPU-time budget of one agent step [s] "
                                                      "(default 2)")
+    p.add_argument("--step-wall", type=float, help="wall-clock cap of one agent step [s] "
+                                                   "(default 10 x the step budget)")
     p.add_argument("--episode-wall", type=float, help="wall-clock limit of one episode [s] "
                                                       "(default 3600)")
     p.add_argument("--memory-mb", type=int, help="agent memory [MiB] (default 4096)")

@@ -14,7 +14,7 @@ from pr2_drake.scene import StartPose
 
 HOSTILE = Path(__file__).with_name("hostile") / "hostile_agents.py"
 ON_THE_ROAD = StartPose(x=1.0, y=0.0, yaw=0.0)  # task 1: "task_region" (5 points) at once
-LIMITS = SandboxLimits(step_seconds=1.0, startup_seconds=60.0)
+LIMITS = SandboxLimits(step_seconds=1.0, step_wall_seconds=2.0, startup_seconds=60.0)
 
 
 def _scenario(agent: str, seconds: float = 0.2, **params) -> Scenario:
@@ -54,7 +54,8 @@ def test_an_exit_hook_cannot_rewrite_the_report(tmp_path):
     ("OpensSocket", "agent_error", "forbidden call: socket"),
     ("ForkBomb", "agent_error", "forbidden call: os.fork"),
     ("Allocates10GB", "agent_memory", "MemoryError"),
-    ("IgnoresSigtermAndSleeps", "agent_timeout", "no answer within"),
+    ("IgnoresSigtermAndSleeps", "agent_timeout", "no answer within the wall-clock cap"),
+    ("Spins", "agent_timeout", "s of CPU time"),
     ("HardExit", "agent_exit", "exited with code 7"),
     ("Raises", "agent_error", "KeyError"),
     ("GarbageAction", "invalid_action", "cannot be sent"),
@@ -150,6 +151,14 @@ def test_the_episode_wall_clock_limit_ends_a_slow_agent():
     r = run_sandboxed_episode(_scenario(f"{HOSTILE}:SlowSteps", 10.0), limits=limits)
     assert r["termination"] == "agent_timeout" and "wall-clock limit" in r["message"]
     assert r["score"] == 5 and r["sim_time"] < 10.0
+
+
+def test_the_step_budget_is_charged_in_cpu_time_not_in_waiting():
+    # 1.5 s of wall clock without computing is within a 1 s CPU budget (a machine busy with
+    # other episodes starves agents the same way); the 2 s wall-clock cap still holds.
+    r = run_sandboxed_episode(_scenario(f"{HOSTILE}:WaitsOnce", 0.1), limits=LIMITS)
+    assert r["termination"] == "timeout", r.get("message")
+    assert r["score"] == 5 and r["step_time_max"] >= 1.5 and r["steps"] == 10
 
 
 def test_a_submission_that_cannot_be_imported_is_an_agent_error():

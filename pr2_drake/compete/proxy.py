@@ -108,7 +108,7 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
                        "t_prev": t_prev}
             else:
                 msg = {"op": "act", "time": t, "ports": env.observation_values()}
-            reply, rtt = agent.request(msg, limits.step_seconds)
+            reply, rtt = agent.request(msg, limits.step_seconds, wall_cap=limits.step_wall_cap)
             rtts.append(rtt)
             c = reply.get("compute")
             computes.append(float(c) if isinstance(c, (int, float)) and 0 <= c <= rtt else rtt)

@@ -50,7 +50,10 @@ class SandboxLimits:
         memory_mb: data memory of the agent's process [MiB] (``RLIMIT_DATA``).
         processes: processes and threads at once in the sandbox.
         cpu_seconds: CPU time of the agent's process per episode [s].
-        step_seconds: wall-clock budget for one action (round trip) [s].
+        step_seconds: budget for one action [s], charged in the agent process's CPU time:
+            a busy machine that starves the agent does not use it up.
+        step_wall_seconds: wall-clock cap of one action [s] (catches an agent that sleeps
+            or blocks instead of computing); None: ten times ``step_seconds``.
         startup_seconds: wall-clock budget to import and build the agent [s].
         episode_seconds: wall-clock limit of an episode once the agent is built (simulation
             included) [s].
@@ -61,9 +64,17 @@ class SandboxLimits:
     processes: int = 64
     cpu_seconds: int = 3600
     step_seconds: float = 2.0
+    step_wall_seconds: float | None = None
     startup_seconds: float = 120.0
     episode_seconds: float = 3600.0
     isolation: str = "auto"
+
+    @property
+    def step_wall_cap(self) -> float:
+        """The wall-clock cap of one action [s]."""
+        if self.step_wall_seconds is not None:
+            return max(float(self.step_wall_seconds), float(self.step_seconds))
+        return 10.0 * float(self.step_seconds)
 
 
 class AgentFault(Exception):
@@ -133,6 +144,7 @@ class AgentProcess:
         self._cgroup: Path | None = None
         self._cam_fd = -1
         self._cam: mmap.mmap | None = None
+        self._clock: int | None = None
 
     # -- lifetime -----------------------------------------------------------------------------
     def start(self) -> None:
@@ -297,25 +309,33 @@ class AgentProcess:
             return ""
 
     # -- messages -----------------------------------------------------------------------------
-    def request(self, message: dict[str, Any], timeout: float) -> tuple[dict[str, Any], float]:
-        """Send ``message`` and wait at most ``timeout`` [s] for the answer.
+    def request(self, message: dict[str, Any], timeout: float, *,
+                wall_cap: float | None = None) -> tuple[dict[str, Any], float]:
+        """Send ``message`` and wait for the answer.
 
+        Args:
+            message: what the agent gets.
+            timeout: the budget [s]: wall clock, or, with ``wall_cap``, the agent process's
+                CPU time (so that a machine busy with other work does not use it up).
+            wall_cap: the wall-clock cap [s] when ``timeout`` is CPU time (an agent that
+                sleeps or blocks uses no CPU).
         Returns:
             (the answer, the round trip [s]).
         Raises:
             AgentFault: the agent hung, died, wrote garbage, raised or exited.
         """
         t0 = time.perf_counter()
+        budget = _Budget(timeout, wall_cap, self._cpu_clock() if wall_cap else None, t0)
         data = pickle.dumps(self._pack_camera(message), protocol=pickle.HIGHEST_PROTOCOL)
         try:
             _write_all(self._w, _HEADER.pack(len(data)) + data)
         except (BrokenPipeError, OSError):
             raise self._death() from None
-        header = self._read_exact(4, t0, timeout)
+        header = self._read_exact(4, budget)
         (n,) = _HEADER.unpack(header)
         if n > MAX_REPLY_BYTES:
             raise AgentFault("agent_error", f"garbage on the agent channel: a {n}-byte answer")
-        payload = self._read_exact(n, t0, timeout)
+        payload = self._read_exact(n, budget)
         rtt = time.perf_counter() - t0
         try:
             reply = decode_reply(payload)
@@ -337,21 +357,29 @@ class AgentProcess:
             raise AgentFault("invalid_action", " ".join(str(reply["invalid"]).split())[:500])
         return reply, rtt
 
+    def _cpu_clock(self) -> int | None:
+        """The CPU-time clock of the agent's Python process (found once, inside bubblewrap's
+        namespaces too), or None where the kernel does not give one."""
+        if self._clock is None and self.proc is not None:
+            pid = _agent_pid(self.proc.pid)
+            self._clock = -1 if pid is None else _process_cpu_clock(pid)
+        return None if self._clock in (None, -1) else self._clock
+
     def _pack_camera(self, message: dict[str, Any]) -> dict[str, Any]:
         """Move the large arrays of a message (camera frames) into the shared-memory block;
         the message carries references (see :func:`to_shared`)."""
         used = [0]
         return to_shared(message, self._cam, used, "")
 
-    def _read_exact(self, n: int, t0: float, timeout: float) -> bytes:
+    def _read_exact(self, n: int, budget: "_Budget") -> bytes:
         out = bytearray()
         while len(out) < n:
-            left = timeout - (time.perf_counter() - t0)
-            ready, _, _ = select.select([self._r], [], [], max(0.0, left))
+            ready, _, _ = select.select([self._r], [], [], budget.wait())
             if not ready:
+                if budget.left() > 0.0:
+                    continue  # starved by a busy machine, not out of budget
                 self._terminate()
-                raise AgentFault("agent_timeout",
-                                 f"no answer within the budget of {timeout:g} s (wall clock)")
+                raise AgentFault("agent_timeout", budget.spent())
             chunk = os.read(self._r, n - len(out))
             if not chunk:
                 raise self._death()
@@ -383,6 +411,94 @@ class AgentProcess:
             return AgentFault("agent_exit",
                               f"the agent process died of signal {signal.Signals(-code).name}")
         return AgentFault("agent_exit", f"the agent process exited with code {code}")
+
+
+class _Budget:
+    """What one request may use: ``seconds`` of wall clock, or, given a CPU clock, ``seconds``
+    of the agent's CPU time within ``wall_cap`` seconds of wall clock."""
+
+    def __init__(self, seconds: float, wall_cap: float | None, clock: int | None, t0: float):
+        self.seconds, self.t0, self.clock = float(seconds), t0, clock
+        self.wall_cap = float(wall_cap) if clock is not None and wall_cap else self.seconds
+        self.cpu0 = _cpu_time(clock)
+
+    def left(self) -> float:
+        """Seconds left: the smaller of the CPU budget left and the wall-clock cap left."""
+        wall_left = self.wall_cap - (time.perf_counter() - self.t0)
+        if self.clock is None:
+            return wall_left
+        cpu = _cpu_time(self.clock)
+        if cpu is None:  # the process is gone: the read sees its end next
+            return max(wall_left, 0.0)
+        return min(self.seconds - (cpu - self.cpu0), wall_left)
+
+    def wait(self) -> float:
+        """How long to wait for the agent before looking at its budget again [s] (its CPU time
+        cannot grow faster than the wall clock, so waiting what is left never overspends it
+        by more than its other threads use)."""
+        return max(0.0, self.left())
+
+    def spent(self) -> str:
+        """Why the request ran out, for the report."""
+        wall = time.perf_counter() - self.t0
+        if self.clock is None:
+            return f"no answer within the budget of {self.seconds:g} s (wall clock)"
+        cpu = (_cpu_time(self.clock) or self.cpu0) - self.cpu0
+        if cpu >= self.seconds:
+            return (f"no answer within the budget of {self.seconds:g} s of CPU time "
+                    f"({wall:.1f} s wall clock)")
+        return (f"no answer within the wall-clock cap of {self.wall_cap:g} s (it used "
+                f"{cpu:.2f} s of CPU time: sleeping or blocked)")
+
+
+def _cpu_time(clock: int | None) -> float | None:
+    if clock is None:
+        return None
+    try:
+        return time.clock_gettime(clock)
+    except OSError:
+        return None
+
+
+def _agent_pid(root: int) -> int | None:
+    """The agent's Python process among ``root`` and its descendants (bubblewrap runs it as a
+    grandchild), by its command line."""
+    stack, found = [root], None
+    while stack:
+        pid = stack.pop()
+        if b"pr2_drake.compete.child" in _read_bytes(f"/proc/{pid}/cmdline") and \
+                not _read_bytes(f"/proc/{pid}/cmdline").startswith(b"bwrap"):
+            found = pid
+        try:
+            tasks = os.listdir(f"/proc/{pid}/task")
+        except OSError:
+            continue
+        for t in tasks:
+            stack += [int(c) for c in _read_bytes(f"/proc/{pid}/task/{t}/children").split()]
+    return found
+
+
+def _read_bytes(path: str) -> bytes:
+    try:
+        with open(path, "rb") as f:
+            return f.read()
+    except OSError:
+        return b""
+
+
+def _process_cpu_clock(pid: int) -> int:
+    """The clock id of ``pid``'s CPU time (all its threads), or -1."""
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        clock = ctypes.c_int()
+        if libc.clock_getcpuclockid(int(pid), ctypes.byref(clock)) != 0:
+            return -1
+        time.clock_gettime(clock.value)
+        return clock.value
+    except (OSError, AttributeError):
+        return -1
 
 
 def decode_reply(payload: bytes) -> Any:

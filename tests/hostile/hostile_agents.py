@@ -138,6 +138,21 @@ class IgnoresSigtermAndSleeps(_Later):
             time.sleep(1.0)
 
 
+class Spins(_Later):
+    def offend(self, obs):
+        while True:
+            pass
+
+
+class WaitsOnce(_Later):
+    """Waits 1.5 s of wall clock once (no CPU), as a starved agent on a busy machine would."""
+
+    def offend(self, obs):
+        if not getattr(self, "waited", False):
+            self.waited = True
+            time.sleep(1.5)
+
+
 class HardExit(_Later):
     def offend(self, obs):
         os._exit(7)
