@@ -223,3 +223,45 @@ def test_object_models_load_from_any_working_folder(tmp_path, monkeypatch):
     assert 0.05 < model.height < 0.3
     with pytest.raises(FileNotFoundError, match="object model mesh of 'cup'"):
         load_object_model("cup", "models/objects/cup/missing.obj")
+
+
+def test_the_object_is_placed_with_the_arm_as_at_the_pick():
+    seq, _ = sequencer()
+    tab = seq.tables["coffee_table"]
+    seq.side = np.array([0.0, 1.0])  # approached from its +y side (the sofa is at -y)
+    seq.r_pick = np.array([0.35, -0.18, 0.05])  # hand at the pick, heading frame
+    seq.o_pick = np.array([0.45, -0.25, 0.02])  # the object it held
+    seq.hand_over_top = 0.09
+    x, y, yaw = seq._place_pose(tab)
+    assert yaw == pytest.approx(-math.pi / 2)  # facing the table
+    c, s = math.cos(yaw), math.sin(yaw)
+    p_obj = np.array([x + c * 0.45 + s * 0.25, y + s * 0.45 - c * 0.25])
+    near_edge = tab.center[1] + tab.size[1] / 2
+    assert p_obj[1] == pytest.approx(near_edge - seq.p.place_inset)  # inset from the edge
+    assert p_obj[0] == pytest.approx(tab.center[0])  # on the centre line
+    p_WB = np.array([x, y, 0.57])
+    drop = seq._drop_point(p_WB, yaw, tab)
+    assert np.allclose(seq._in_heading(p_WB, yaw, drop)[:2], [0.35, -0.18])  # arm as before
+    assert drop[2] == pytest.approx(tab.height + 0.09 + seq.p.place_clearance)
+    # A short reach would put the base against the table: it keeps place_standoff, and the
+    # object lands deeper.
+    seq.o_pick = np.array([0.2, -0.2, 0.0])
+    _, y, _ = seq._place_pose(tab)
+    assert y - near_edge == pytest.approx(seq.p.place_standoff)
+
+
+def test_an_object_out_of_reach_from_the_look_side_is_picked_from_the_nearest_free_side():
+    # 0.39 m inside the desk's south (look) edge, 0.10 m from its west end: beyond the arm's
+    # reach from the south, so the robot walks round to the nearest side with floor.
+    p_WO = np.array([1.5, 2.89, 0.63])
+    seq, ctx = sequencer(detector=StubDetector(p_WO))
+    seq.GetInputPort("body_state").FixValue(ctx, body_state(2.0, 1.95, math.pi / 2))
+    Simulator(seq, ctx).AdvanceTo(1.0)
+    assert seq.stage == Stage.NAVIGATE and seq.nav_then == Stage.APPROACH
+    tab = seq.tables["desk"]
+    depth = tab.side_frame(seq.side)[0] - float((p_WO[:2] - tab.center) @ seq.side)
+    assert depth <= 0.21 + 1e-9  # the west end (0.10) or the north side (0.21), not 0.39
+    x, y, yaw = seq.pick_goal
+    assert np.allclose([math.cos(yaw), math.sin(yaw)], -seq.side)  # facing the table
+    grid = seq.grid.inflated(seq.nav.robot_radius)
+    assert grid.free(seq.path[-1])

@@ -124,6 +124,35 @@ def test_hand_target_in_reach_is_reached_while_standing():
     assert np.linalg.norm(p1[:2] - p_WB[:2]) < 0.05  # no stepping away
 
 
+def _tilt_after_lowering(upright: bool) -> float:
+    """Angle [deg] of a held object's vertical after the right hand went 0.10 m down (its
+    vertical is the hand-frame axis that was up before), with and without the up axis."""
+    sim = WalkingSim(arms="effort")
+    assert sim.run(1.0)
+    m = sim.walker.core.model
+    p_WB, *_ = sim.base_pose()
+    above = p_WB + np.array([0.30, -0.20, 0.10])
+    sim.set_hand_targets([None, above])
+    assert sim.run(3.0)
+    up_H = m.hand_rotation(1)[0].T @ np.array([0.0, 0.0, 1.0])
+    below = above - np.array([0.0, 0.0, 0.10])
+    sim.set_hand_targets([None, np.r_[below, up_H] if upright else below])
+    assert sim.run(3.0)
+    assert np.linalg.norm(m.hand_point(1)[0] - below) < 0.04
+    return float(np.degrees(np.arccos(min(1.0, (m.hand_rotation(1)[0] @ up_H)[2]))))
+
+
+def test_an_up_axis_keeps_a_held_object_upright_as_the_hand_moves():
+    # The arm has 4 joints: lowering the hand 10 cm tilts it ~20 deg; the upright task trades
+    # a little position for it.
+    free, upright = _tilt_after_lowering(False), _tilt_after_lowering(True)
+    assert free > 10.0 and upright < 6.0, (free, upright)
+    with pytest.raises(ValueError, match="up axis is zero"):
+        check_hand_targets([None, [0.3, -0.2, 0.8, 0.0, 0.0, 0.0]])
+    t = check_hand_targets([None, [0.3, -0.2, 0.8, 0.0, 0.0, 2.0]])[1]
+    np.testing.assert_allclose(t, [0.3, -0.2, 0.8, 0.0, 0.0, 1.0])
+
+
 def test_fixed_footstep_planner_steps_on_its_footholds():
     """A footstep planner of the test's own (three fixed footholds): the soles land there."""
     gait = WalkingParams.load().gait

@@ -41,11 +41,14 @@ class SwingReference:
 
 @dataclass
 class HandReference:
-    """A hand's desired position p_WH [m] (None: no hand task) and whether it is attached
+    """A hand's desired position p_WH [m] (None: no hand task), an axis of the hand frame to
+    keep upright (``up``, e.g. a held object's vertical: None leaves the orientation free), and
+    whether it is attached
     (``pick_state``): then its contact force is a QP variable within ``force_max`` [N] per
     axis of W (centred on ``force_prior`` [N], the force expected at the hand)."""
 
     p: np.ndarray | None = None
+    up: np.ndarray | None = None  # unit axis in H to keep along +z of W (None: free)
     attached: bool = False
     force_prior: np.ndarray = field(default_factory=lambda: np.zeros(3))
 

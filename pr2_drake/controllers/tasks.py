@@ -236,6 +236,27 @@ class HandPositionTask(Task):
         cost.add(J, a, self.w)
 
 
+class HandUprightTask(Task):
+    """Keeps the axis ``plan.hands[side].up`` of the hand frame H vertical in W: rows about the
+    world x and y axes only (the heading about z stays free), error (R_WH u) x z_W [rad]. The
+    arm has 4 joints, so with the position task this trades tilt against position through the
+    weights (no rows when ``up`` is None)."""
+
+    def __init__(self, side: int, gains: TaskGains):
+        self.side = side
+        self.gains = gains
+        self.w = np.full(2, gains.weight)
+
+    def add_to(self, cost, model, plan) -> None:
+        h = plan.hands[self.side]
+        if h.up is None or h.p is None:
+            return
+        R, w, J, jdv = model.hand_rotation(self.side)
+        e = np.cross(R @ h.up, [0.0, 0.0, 1.0])
+        a = self.gains.kp * e - self.gains.kd * w - jdv
+        cost.add(J[:2], a[:2], self.w)
+
+
 class PostureTask(Task):
     """Joint posture: every joint towards ``q_nominal`` (18, original order: arms, legs), with
     per-joint kp [1/s^2], kd [1/s] and weights."""

@@ -7,9 +7,11 @@ Input ports:
     ``joint_state`` (54), ``body_state`` (13): the testbed's observations (pr2_drake.ports).
     With ``arms="effort"`` only:
     ``hand_targets`` (abstract, a list [left, right]): per hand None or a desired hand-sphere
-        centre p_WH (3) [m] in world. NaN/inf or a wrong shape raise ValueError naming the
-        port; targets beyond reach are clipped onto the workspace (within
-        ``arms.reach_max`` of the shoulder, ``arms.z_min`` above the soles).
+        centre p_WH (3) [m] in world, optionally followed by an axis of the hand frame to keep
+        vertical (6 values; e.g. a held object's "up", so it is carried and set down
+        upright). NaN/inf or a wrong shape raise ValueError naming the port; targets beyond
+        reach are clipped onto the workspace (within ``arms.reach_max`` of the shoulder,
+        ``arms.z_min`` above the soles).
         Unconnected = no hand targets (posture).
     ``pick_state`` (abstract :class:`pr2_drake.grasp.PickState`): while a hand is attached,
         its contact force is a variable of the QP (bounded by ``qp.hand_force_max``), so the

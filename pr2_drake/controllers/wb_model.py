@@ -97,6 +97,7 @@ class WholeBodyModel:
         self._com = None
         self._sole = [None, None]
         self._hand = [None, None]
+        self._hand_rot = [None, None]
         self._R_WB = None
 
     # ---- terms (cached per update: treat the returned arrays as read-only) -------------------
@@ -171,6 +172,18 @@ class WholeBodyModel:
             p = H.CalcPoseInWorld(ctx).translation()
             self._hand[side] = (p, J @ self.v, J, jdv)
         return self._hand[side]
+
+    def hand_rotation(self, side: int):
+        """R_WH (3 x 3), w_WH (3, W), J_w (3 x nv) and Jdot_w v (3) of a hand sphere frame H."""
+        if self._hand_rot[side] is None:
+            ctx, W, H = self.context, self.world, self.hands[side]
+            J = self.plant.CalcJacobianSpatialVelocity(
+                ctx, JacobianWrtVariable.kV, H, np.zeros(3), W, W)[:3]
+            jdv = self.plant.CalcBiasSpatialAcceleration(
+                ctx, JacobianWrtVariable.kV, H, np.zeros(3), W, W).rotational()
+            R = H.CalcPoseInWorld(ctx).rotation().matrix()
+            self._hand_rot[side] = (R, J @ self.v, J, np.asarray(jdv).reshape(-1))
+        return self._hand_rot[side]
 
     def contact_points(self, side: int):
         """J (3n x nv) and Jdot v (3n) of the contact points of one sole, stacked per point."""

@@ -34,6 +34,7 @@ from pr2_drake.controllers.plan import WholeBodyPlan
 from pr2_drake.controllers.tasks import (
     ComTask,
     HandPositionTask,
+    HandUprightTask,
     PelvisOrientationTask,
     PostureTask,
     SoleContactTask,
@@ -68,8 +69,9 @@ def check_command(command, port: str = COMMAND_PORT) -> np.ndarray:
 
 
 def check_hand_targets(targets, port: str = HAND_TARGETS_PORT) -> list[np.ndarray | None]:
-    """Hand targets as [left, right], each None or a finite p_WH (3) [m]; ValueError naming
-    the port on a wrong length, shape, NaN or inf.
+    """Hand targets as [left, right], each None, a finite p_WH (3) [m], or 6 values: p_WH and
+    an axis u_H of the hand frame to keep vertical (a held object's "up"; returned unit
+    length); ValueError naming the port on a wrong length, shape, NaN, inf or a zero axis.
 
     Accepts a sequence of two entries, or a mapping with keys "left_hand" / "right_hand".
     """
@@ -96,10 +98,16 @@ def check_hand_targets(targets, port: str = HAND_TARGETS_PORT) -> list[np.ndarra
             a = np.asarray(p, dtype=float).reshape(-1)
         except (TypeError, ValueError) as err:
             raise ValueError(f"{port}: {name} target is not 3 numbers: {p!r}") from err
-        if a.shape != (3,):
-            raise ValueError(f"{port}: {name} target needs 3 values (x, y, z), got {a.shape}")
+        if a.shape not in ((3,), (6,)):
+            raise ValueError(f"{port}: {name} target needs 3 values (x, y, z) or 6 (x, y, z "
+                             f"and an up axis in the hand frame), got {a.shape}")
         if not np.all(np.isfinite(a)):
             raise ValueError(f"{port}: {name} target contains NaN or inf: {a}")
+        if a.size == 6:
+            n = float(np.linalg.norm(a[3:]))
+            if n < 1e-9:
+                raise ValueError(f"{port}: {name} target's up axis is zero: {a[3:]}")
+            a = np.r_[a[:3], a[3:] / n]
         out.append(a)
     return out
 
@@ -154,7 +162,9 @@ class WholeBodyController:
             np.r_[np.full(n_arms, arm_gains.kd), np.full(n_legs, p.posture_legs.kd)],
             np.r_[np.full(n_arms, arm_gains.weight), np.full(n_legs, p.posture_legs.weight)])
         if self.arms_driven:
-            self.tasks += [HandPositionTask(0, p.arms.hand), HandPositionTask(1, p.arms.hand)]
+            self.tasks += [HandPositionTask(0, p.arms.hand), HandPositionTask(1, p.arms.hand),
+                           HandUprightTask(0, p.arms.hand_upright),
+                           HandUprightTask(1, p.arms.hand_upright)]
         self.tasks.append(self.posture)
         self.cost = TaskCost(m.nv)
         # The QP: leg (and arm) torque limits and joint ranges from the plant.
@@ -284,8 +294,9 @@ class WholeBodyController:
         if self.arms_driven:
             for side in (0, 1):
                 h = plan.hands[side]
-                h.p = None if targets[side] is None else self.clip_hand_target(side,
-                                                                             targets[side])
+                tgt = targets[side]
+                h.p = None if tgt is None else self.clip_hand_target(side, tgt[:3])
+                h.up = None if tgt is None or tgt.size == 3 else tgt[3:]
                 h.attached = attached[side]
                 h.force_prior = self.hand_force.f[side]
         if timed:

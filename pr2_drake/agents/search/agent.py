@@ -23,17 +23,22 @@ Stages (``stage`` output):
    (the camera is fixed on the base: the body turns); nothing found -> next place;
 3. APPROACH: small steps onto a pick pose ``pick_standoff`` from the table edge, in line with
    the object (the hand's shoulder nearer it), facing the table; an object more than
-   ``far_side`` from the look side's edge is picked from the opposite side when there is floor
-   there (NAVIGATE round the table first); SETTLE until the gait stands;
+   ``far_side`` from the look side's edge is picked from the side (of the four) nearest it
+   where there is floor (NAVIGATE round the table first); SETTLE until the gait stands;
 4. REACH: the nearer hand rises in front of the body, moves over the grasp point
    (``pre_height`` above it) and down onto it: ``grasp_offset`` from the object's centre
    towards the shoulder, at least ``grasp_height`` above the centre (inside the 0.20 m pick
    distance, as near the shoulder as that allows); PICK: ``pick`` until ``pick_state`` reports
    it attached (timeout: closer to the centre and try again, ``pick_tries`` in all);
-5. LIFT to the carry pose, NAVIGATE (holding it) to the coffee table, APPROACH a place pose
-   ``place_standoff`` from its edge, SETTLE;
-6. PLACE: the hand moves the object over the top, ``place_inset`` inside the near edge, its
-   bottom ``place_clearance`` above the top; RELEASE; the hand goes up; step BACK; DONE.
+5. LIFT to the carry pose, NAVIGATE (holding it) to the coffee table, APPROACH the place
+   pose from which, the arm as at the pick, the object is over the table's centre line
+   ``place_inset`` inside its near edge (the base at least ``place_standoff`` from the edge),
+   SETTLE;
+6. PLACE: the hand goes back to where it held the object at the pick (relative to the base,
+   so that the arm is as it was), as high over this top as it was over that one plus
+   ``place_clearance``; RELEASE; the hand goes up; step BACK; DONE. From the pick to the
+   release the hand targets carry the object's vertical in the hand frame (6-value targets):
+   the whole-body QP keeps it vertical, so round objects are set down upright.
 
 FAILED (standing, the reason in ``error`` and the step log in ``log``): not found on any
 table, pick failed ``pick_tries`` times, no path, or the object fell from the hand.
@@ -89,9 +94,9 @@ class SearchAgentParams:
     look_frames: int = 2
     search_margin: float = 0.25
     pick_standoff: float = 0.12
-    far_side: float = 0.45
+    far_side: float = 0.32
     stage_distance: float = 0.40
-    place_standoff: float = 0.20
+    place_standoff: float = 0.15
     hand_lateral: float = 0.10
     approach_radius: float = 0.12
     approach_gain: float = 1.0
@@ -111,7 +116,7 @@ class SearchAgentParams:
     pick_tries: int = 4
     carry: List[float] = field(default_factory=lambda: [0.22, 0.14, 0.30])
     place_inset: float = 0.17
-    place_clearance: float = 0.03
+    place_clearance: float = 0.015
     release_hold: float = 0.6
     back_speed: float = 0.10
     back_time: float = 2.0
@@ -300,7 +305,10 @@ class ObjectSearchSequencer(LeafSystem):
         self.hand_path: list = []
         self.hand_t0 = 0.0
         self.pick_tries = 0
-        self.offset_z = 0.0  # hand centre above the object's centre while holding it
+        self.r_pick = np.zeros(3)  # hand at the pick, heading frame of the base [m]
+        self.o_pick = np.zeros(3)  # detected object at the pick, heading frame [m]
+        self.hand_over_top = 0.0  # hand centre above the pick table's top at the pick [m]
+        self.up_H: Optional[np.ndarray] = None  # held object's vertical in the hand frame
         self.log: list[str] = []
 
     def _go(self, stage: Stage, t: float) -> None:
@@ -325,6 +333,32 @@ class ObjectSearchSequencer(LeafSystem):
     def _heading_frame(self, yaw: float, err_W) -> tuple[float, float]:
         cy, sy = math.cos(yaw), math.sin(yaw)
         return cy * err_W[0] + sy * err_W[1], -sy * err_W[0] + cy * err_W[1]
+
+    @staticmethod
+    def _in_heading(p_WB, yaw: float, p_W) -> np.ndarray:
+        """p_W relative to the base in its heading frame (x ahead, y left, z up) [m]."""
+        d = np.asarray(p_W, float) - np.asarray(p_WB, float)
+        c, s = math.cos(yaw), math.sin(yaw)
+        return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2]])
+
+    def _place_pose(self, tab: Table) -> np.ndarray:
+        """(x, y, yaw) facing ``tab`` across ``self.side`` from which, the arm as at the pick,
+        the object is over the top's centre line ``place_inset`` inside its near edge (deeper
+        if that would bring the base nearer than ``place_standoff`` to the edge)."""
+        _, tan, _ = tab.side_frame(self.side)
+        left = np.array([self.side[1], -self.side[0]])  # the robot's left facing -n
+        ox, oy = float(self.o_pick[0]), float(self.o_pick[1])
+        standoff = max(ox - self.p.place_inset, self.p.place_standoff)
+        return self._pose_at(tab, self.side, -oy * float(left @ tan), standoff)
+
+    def _drop_point(self, p_WB, yaw: float, tab: Table) -> np.ndarray:
+        """p_WH to release at: where the hand held the object at the pick relative to the base
+        (heading frame), as high over ``tab``'s top as it was over the pick table's plus
+        ``place_clearance`` (so the object's bottom is that far above the top) [m]."""
+        c, s = math.cos(yaw), math.sin(yaw)
+        rx, ry = float(self.r_pick[0]), float(self.r_pick[1])
+        return np.array([p_WB[0] + c * rx - s * ry, p_WB[1] + s * rx + c * ry,
+                         tab.height + self.hand_over_top + self.p.place_clearance])
 
     def _carry_point(self, p_WB, yaw: float) -> np.ndarray:
         x, y, z = self.p.carry
@@ -468,7 +502,16 @@ class ObjectSearchSequencer(LeafSystem):
         if self.stage == Stage.PICK:
             if pick.attached:
                 p_WH = self.model.hand_point(self.hand)[0]
-                self.offset_z = float(p_WH[2] - self.p_WO[2])
+                # Where the hand holds it, in the base's heading frame (x ahead, y left, z up):
+                # placing with the arm as it was here keeps the object's tilt small, and the
+                # hand's height over the table it stood on sets the place height (the detected
+                # height is a few cm off).
+                self.r_pick = self._in_heading(p_WB, yaw, p_WH)
+                self.o_pick = self._in_heading(p_WB, yaw, self.p_WO)
+                self.hand_over_top = float(p_WH[2] - self.tables[self.place].height)
+                # The object's vertical in the hand frame: the QP keeps it vertical until the
+                # release (it stood upright; round objects roll off when set down tilted).
+                self.up_H = self.model.hand_rotation(self.hand)[0].T @ np.array([0.0, 0.0, 1.0])
                 self._start_hand_path([p_WH + [0.0, 0.0, 0.10],
                                        self._carry_point(p_WB, yaw)], t)
                 self._go(Stage.LIFT, t)
@@ -502,17 +545,12 @@ class ObjectSearchSequencer(LeafSystem):
             self.error = "the object fell from the hand"
             self.log.append(f"{t:7.2f} {self.error}")
             self.targets = [None, None]
+            self.up_H = None
             self._go(Stage.FAILED, t)
         if self.stage == Stage.CARRY:
             self.targets[self.hand] = self._carry_point(p_WB, yaw)
             if self._walk(p_WB, yaw):
-                tab = self.tables[self.instruction.destination]
-                _, tan, _ = tab.side_frame(self.side)
-                # The holding hand's shoulder over the table's centre line.
-                left = np.array([self.side[1], -self.side[0]])  # robot's left facing -n
-                sign = 1.0 if self.hand == 0 else -1.0
-                along = -sign * p.hand_lateral * float(left @ tan)
-                self.goal = self._pose_at(tab, self.side, along, p.place_standoff)
+                self.goal = self._place_pose(self.tables[self.instruction.destination])
                 self._go(Stage.APPROACH_TABLE, t)
         if self.stage == Stage.APPROACH_TABLE:
             self.targets[self.hand] = self._carry_point(p_WB, yaw)
@@ -525,13 +563,7 @@ class ObjectSearchSequencer(LeafSystem):
             if not standing:
                 self.t_stage = t
             elif t - self.t_stage >= p.settle_time:
-                tab = self.tables[self.instruction.destination]
-                half, tan, _ = tab.side_frame(self.side)
-                p_WH = self.model.hand_point(self.hand)[0]
-                along = float((p_WH[:2] - tab.center) @ tan)
-                xy = tab.center + self.side * (half - p.place_inset) + tan * along
-                z = (tab.height + p.place_clearance + 0.5 * self.object_height + self.offset_z)
-                drop = np.array([xy[0], xy[1], z])
+                drop = self._drop_point(p_WB, yaw, self.tables[self.instruction.destination])
                 self._start_hand_path([drop + [0.0, 0.0, 0.08], drop], t)
                 self._go(Stage.PLACE, t)
         if self.stage == Stage.PLACE:
@@ -542,6 +574,7 @@ class ObjectSearchSequencer(LeafSystem):
             if pick.attached:
                 self.t_stage = t
             elif t - self.t_stage >= p.release_hold:
+                self.up_H = None
                 p_WH = self.model.hand_point(self.hand)[0]
                 self._start_hand_path([p_WH + [0.0, 0.0, 0.10]], t)
                 self._go(Stage.RETRACT, t)
@@ -600,49 +633,66 @@ class ObjectSearchSequencer(LeafSystem):
 
     def _start_approach(self, p_WB, t: float) -> None:
         tab = self.tables[self.place]
+        look = best_side(self.grid, tab, self.p.look_distance, self.nav.robot_radius)
         # Stand at the side nearest the object (when there is room), else the look side.
         n = self._pick_side(tab)
-        half, tan, _ = tab.side_frame(n)
+        if not np.allclose(n, look):
+            self.hand, stage = self._pick_pose(tab, n, self.p.stage_distance)
+            if self._plan(p_WB, stage):
+                self.hand, self.pick_goal = self._pick_pose(tab, n, self.p.pick_standoff)
+                self.side = n  # walk round the table first
+                self.nav_then = Stage.APPROACH
+                self._go(Stage.NAVIGATE, t)
+                return
+        self.hand, self.pick_goal = self._pick_pose(tab, look, self.p.pick_standoff)
+        self.side = look
+        self.goal = self.pick_goal
+        self._go(Stage.APPROACH, t)
+
+    def _pick_pose(self, tab: Table, n: np.ndarray, standoff: float):
+        """(hand, (x, y, yaw)): the hand on the object's side and the pose ``standoff`` from
+        the edge across ``n``, facing the table, in line with the object but for
+        ``hand_lateral`` (the hand's shoulder nearer it)."""
+        _, tan, _ = tab.side_frame(n)
         along = float((self.p_WO[:2] - tab.center) @ tan)
         left = np.array([n[1], -n[0]])  # the robot's left when it faces -n
-        self.hand = 0 if along * float(left @ tan) > 0 else 1
-        sign = 1.0 if self.hand == 0 else -1.0
+        hand = 0 if along * float(left @ tan) > 0 else 1
+        sign = 1.0 if hand == 0 else -1.0
         along -= sign * self.p.hand_lateral * float(left @ tan)
-        look = best_side(self.grid, tab, self.p.look_distance, self.nav.robot_radius)
-        self.pick_goal = self._pose_at(tab, n, along, self.p.pick_standoff)
-        if np.allclose(n, look) or not self._plan(
-                p_WB, self._pose_at(tab, n, along, self.p.stage_distance)):
-            n = look if not np.allclose(n, look) else n
-            self.pick_goal = self._pose_at(tab, n, along, self.p.pick_standoff)
-            self.side = n
-            self.goal = self.pick_goal
-            self._go(Stage.APPROACH, t)
-            return
-        self.side = n  # walk round the table first
-        self.nav_then = Stage.APPROACH
-        self._go(Stage.NAVIGATE, t)
+        return hand, self._pose_at(tab, n, along, standoff)
 
     def _pick_side(self, tab: Table) -> np.ndarray:
-        """The look side, or the opposite side when the object is more than ``far_side``
-        from the look side's edge and there is floor to stand on beyond the table."""
+        """The look side, or, when the object is more than ``far_side`` inside its edge, the
+        side (of the four) whose edge is nearest the object, where there is floor to stand
+        on in front of the object."""
         look = best_side(self.grid, tab, self.p.look_distance, self.nav.robot_radius)
-        half, _, _ = tab.side_frame(look)
         d = self.p_WO[:2] - tab.center
-        if half - float(d @ look) <= self.p.far_side:
+
+        def depth(n: np.ndarray) -> float:
+            return tab.side_frame(n)[0] - float(d @ n)
+
+        if depth(look) <= self.p.far_side:
             return look
-        other = -look
         g = self.grid.inflated(self.nav.robot_radius)
-        half_o, _, _ = tab.side_frame(other)
-        if g.free(tab.center + other * (half_o + self.p.stage_distance)):
-            return other
-        return look
+        best, best_depth = look, depth(look) - 0.05  # walking round must gain something
+        for n in (-look, np.array([-look[1], look[0]]), np.array([look[1], -look[0]])):
+            half, tan, half_len = tab.side_frame(n)
+            along = float(np.clip(d @ tan, -half_len, half_len))
+            if depth(n) < best_depth and g.free(
+                    tab.center + n * (half + self.p.stage_distance) + tan * along):
+                best, best_depth = n, depth(n)
+        return best
 
     # ---- outputs -----------------------------------------------------------------------------
     def _calc_cmd(self, context, output: BasicVector) -> None:
         output.SetFromVector(self.cmd)
 
     def _calc_targets(self, context, output) -> None:
-        output.set_value([None if x is None else np.array(x) for x in self.targets])
+        targets = [None if x is None else np.array(x) for x in self.targets]
+        side = self.hand
+        if self.up_H is not None and targets[side] is not None:
+            targets[side] = np.r_[targets[side], self.up_H]  # carried upright
+        output.set_value(targets)
 
     def _calc_pick(self, context, output) -> None:
         output.set_value(self.pick)
