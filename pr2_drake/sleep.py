@@ -29,8 +29,6 @@ Checks run at the simulated times k * ``check_period`` (see
 same episode gives the same trajectory bit for bit under every driver.
 """
 
-from __future__ import annotations
-
 import math
 from dataclasses import dataclass
 
@@ -135,6 +133,8 @@ class ObjectSleeper:
         settings.validate()
         self.settings = settings
         self.testbed = testbed
+        self._filter_ids: dict[int, object] = {}  # slot -> transient filter id
+        self._rest_since: list[float | None] = []
         plant, sg = testbed.plant, testbed.scene_graph
         inspector = sg.model_inspector()
         self._managed: list[int] = []  # graspable indices
@@ -173,12 +173,12 @@ class ObjectSleeper:
             return
         if context is not None:
             mgr = self._filters(context)
-            for fid in getattr(self, "_filter_ids", {}).values():
+            for fid in self._filter_ids.values():
                 if mgr.IsActive(fid):
                     mgr.RemoveDeclaration(fid)
             self._grasp().set_sleeping(self._grasp_context(context), ())
-        self._filter_ids: dict[int, object] = {}  # slot -> transient filter id
-        self._rest_since: list[float | None] = [None] * len(self._bodies)
+        self._filter_ids = {}
+        self._rest_since = [None] * len(self._bodies)
 
     @property
     def sleeping(self) -> list[str]:
