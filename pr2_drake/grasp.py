@@ -120,12 +120,14 @@ class GraspSystem(LeafSystem):
         self._attachment = self.DeclareAbstractState(AbstractValue.Make(_NoAttachment()))
         # The graspables that sleep (indices into graspables), a sorted tuple.
         self._sleeping = self.DeclareAbstractState(AbstractValue.Make(()))
-        g_W = plant.gravity_field().gravity_vector()
+        # Copies (np.array): pydrake's arrays may view the plant's memory and keep it alive.
+        g_W = np.array(plant.gravity_field().gravity_vector())
         self._weight = {}  # graspable -> (p_BoBcm_B, -m g_W): the weight's cancelling force
         for i, g in enumerate(self._graspables):
             body = plant.get_body(g.body)
             if body.is_floating_base_body():
-                self._weight[i] = (body.default_com(), -(body.default_mass() * g_W))
+                self._weight[i] = (np.array(body.default_com()),
+                                   -(float(body.default_mass()) * g_W))
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update)
         self.DeclareAbstractOutputPort(
             "pick_state", lambda: AbstractValue.Make(PickState()), weak_calc(self._calc_pick_state)
