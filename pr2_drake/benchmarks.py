@@ -1,8 +1,10 @@
 """``pr2-drake bench``: speed benchmarks. Figures in docs come from these commands.
 
-    pr2-drake bench sim [--seconds 10] [--repeats 3] [--task N] [--profile]
-        real-time factor of the standing robot in closed loop (median of repeats), and the
-        split of wall time between the plant step and the Python controller blocks.
+    pr2-drake bench sim [--seconds 10] [--repeats 3] [--task N] [--sleep on|off|both]
+                        [--no-camera] [--profile]
+        real-time factor and CPU seconds per simulated second of the standing robot in
+        closed loop (median of repeats), with object sleeping on, off or both (alternating
+        runs), and the split of wall time between the plant step and the Python blocks.
     pr2-drake bench camera [--resolutions paper|640x480,...] [--task 6,1] [--quality low,high]
         colour+depth renders per wall-clock second of the head camera, per task, preset and
         resolution, beside the paper's figures (``paper``: its eight resolutions).
@@ -35,15 +37,24 @@ import sys
 import time
 
 
-def _standing_diagram(task, seed: int = 0, camera=None):
-    """The standing controller's episode of ``task``; returns (simulator, testbed)."""
+def _standing_episode(task, seed: int = 0, camera=None, sleep: bool = True):
+    """The standing controller's episode of ``task``, initialized (object sleeping on or
+    off; :mod:`pr2_drake.sleep`)."""
     from pr2_drake.controllers.standing import StandingController
     from pr2_drake.episode import Episode, wire_system
     from pr2_drake.scenario import Scenario
+    from pr2_drake.sleep import SleepSettings
 
-    episode = Episode(Scenario(task=task, seed=seed, camera=camera, seconds=math.inf),
+    episode = Episode(Scenario(task=task, seed=seed, camera=camera, seconds=math.inf,
+                               sleep=SleepSettings(enabled=sleep)),
                       wire_system(StandingController()))
-    episode.simulator.Initialize()
+    episode.initialize()
+    return episode
+
+
+def _standing_diagram(task, seed: int = 0, camera=None):
+    """The standing controller's episode of ``task``; returns (simulator, testbed)."""
+    episode = _standing_episode(task, seed, camera)
     return episode.simulator, episode.testbed
 
 
@@ -52,23 +63,37 @@ def bench_sim(argv: list[str]) -> int:
     p.add_argument("--seconds", type=float, default=10.0)
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--task", default=None)
+    p.add_argument("--sleep", choices=("on", "off", "both"), default="on",
+                   help="object sleeping (pr2_drake.sleep); both: alternating runs of each")
+    p.add_argument("--no-camera", action="store_true", help="head camera off (task 6)")
     p.add_argument("--profile", action="store_true", help="also print the time split")
     a = p.parse_args(argv)
-    rates = []
+    from pr2_drake.camera import CameraSettings
+
+    camera = CameraSettings(enabled=False) if a.no_camera else None
+    modes = ["on", "off"] if a.sleep == "both" else [a.sleep]
+    rates: dict[str, list[float]] = {m: [] for m in modes}
+    cpus: dict[str, list[float]] = {m: [] for m in modes}
     for _ in range(a.repeats):
-        simulator, _ = _standing_diagram(a.task)
-        start = time.perf_counter()
-        simulator.AdvanceTo(a.seconds)
-        rates.append(a.seconds / (time.perf_counter() - start))
+        for m in modes:  # alternating: a change of the machine's load hits both alike
+            episode = _standing_episode(a.task, camera=camera, sleep=m == "on")
+            start, cpu = time.perf_counter(), time.process_time()
+            episode.advance_to(a.seconds)
+            rates[m].append(a.seconds / (time.perf_counter() - start))
+            cpus[m].append((time.process_time() - cpu) / a.seconds)
     where = f"task {a.task}" if a.task else "flat ground"
-    print(f"standing controller on {where}, {a.seconds:g} s simulated, physics step 1 ms")
-    print(f"  real-time factor: median {statistics.median(rates):.2f} "
-          f"(runs: {', '.join(f'{r:.2f}' for r in rates)})")
+    cam = ", camera off" if a.no_camera else ""
+    print(f"standing controller on {where}, {a.seconds:g} s simulated, physics step 1 ms{cam}")
+    for m in modes:
+        print(f"  sleeping {m:<3}  real-time factor: median {statistics.median(rates[m]):.2f} "
+              f"(runs: {', '.join(f'{r:.2f}' for r in rates[m])}); CPU s per simulated s: "
+              f"median {statistics.median(cpus[m]):.3f} "
+              f"(runs: {', '.join(f'{c:.3f}' for c in cpus[m])})")
     if a.profile:
-        simulator, _ = _standing_diagram(a.task)
+        episode = _standing_episode(a.task, camera=camera, sleep=modes[0] == "on")
         prof = cProfile.Profile()
         prof.enable()
-        simulator.AdvanceTo(min(a.seconds, 3.0))
+        episode.advance_to(min(a.seconds, 3.0))
         prof.disable()
         _print_split(prof)
     return 0

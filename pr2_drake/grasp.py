@@ -87,6 +87,10 @@ class GraspSystem(LeafSystem):
         spatial_forces: list of ExternallyAppliedSpatialForce for the plant.
 
     The command ports are sampled every ``period`` seconds (default 0.01 s).
+
+    Sleeping objects (:mod:`pr2_drake.sleep`): the graspables named by :meth:`set_sleeping`
+    also get a force of -m g at their centre of mass in ``spatial_forces``, which cancels
+    their weight exactly (set between simulator advances; none by default).
     """
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
@@ -114,6 +118,16 @@ class GraspSystem(LeafSystem):
             "plant_state", plant.num_positions() + plant.num_velocities()
         )
         self._attachment = self.DeclareAbstractState(AbstractValue.Make(_NoAttachment()))
+        # The graspables that sleep (indices into graspables), a sorted tuple.
+        self._sleeping = self.DeclareAbstractState(AbstractValue.Make(()))
+        # Copies (np.array): pydrake's arrays may view the plant's memory and keep it alive.
+        g_W = np.array(plant.gravity_field().gravity_vector())
+        self._weight = {}  # graspable -> (p_BoBcm_B, -m g_W): the weight's cancelling force
+        for i, g in enumerate(self._graspables):
+            body = plant.get_body(g.body)
+            if body.is_floating_base_body():
+                self._weight[i] = (np.array(body.default_com()),
+                                   -(float(body.default_mass()) * g_W))
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update)
         self.DeclareAbstractOutputPort(
             "pick_state", lambda: AbstractValue.Make(PickState()), weak_calc(self._calc_pick_state)
@@ -131,6 +145,25 @@ class GraspSystem(LeafSystem):
 
     def _pose(self, body) -> RigidTransform:
         return self._plant.EvalBodyPoseInWorld(self._ctx, body)
+
+    # -- sleeping objects ---------------------------------------------------------------------
+    def set_sleeping(self, context, graspables) -> None:
+        """Make the graspables with these indices (free bodies only) sleep in ``context`` (the
+        grasp system's): their weight is cancelled from now on; all others are awake."""
+        ids = tuple(sorted(int(i) for i in graspables))
+        bad = [i for i in ids if i not in self._weight]
+        if bad:
+            raise ValueError(f"set_sleeping: graspables {bad} are not free bodies")
+        context.get_mutable_abstract_state(1).set_value(ids)
+
+    def sleeping(self, context) -> tuple[int, ...]:
+        """Indices of the sleeping graspables in ``context``."""
+        return context.get_abstract_state(1).get_value()
+
+    def held_graspable(self, context) -> int | None:
+        """Index of the graspable a hand holds in ``context``, or None."""
+        a = context.get_abstract_state(0).get_value()
+        return a.graspable if isinstance(a, _Attachment) else None
 
     # -- events -------------------------------------------------------------------------------
     def _update(self, context, state) -> None:
@@ -183,10 +216,20 @@ class GraspSystem(LeafSystem):
             output.set_value(PickState())
 
     def _calc_forces(self, context, output) -> None:
+        forces = self._attachment_forces(context)
+        for i in context.get_abstract_state(1).get_value():
+            p_BoBcm_B, f_W = self._weight[i]
+            lift = ExternallyAppliedSpatialForce()
+            lift.body_index = self._graspables[i].body
+            lift.p_BoBq_B = p_BoBcm_B
+            lift.F_Bq_W = SpatialForce(np.zeros(3), f_W)
+            forces.append(lift)
+        output.set_value(forces)
+
+    def _attachment_forces(self, context) -> list[ExternallyAppliedSpatialForce]:
         a = context.get_abstract_state(0).get_value()
         if not isinstance(a, _Attachment):
-            output.set_value([])
-            return
+            return []
         self._set_state(context)
         g = self._graspables[a.graspable]
         hand = self._plant.get_body(self._hands[a.hand])
@@ -221,7 +264,7 @@ class GraspSystem(LeafSystem):
         on_hand.body_index = hand.index()
         on_hand.p_BoBq_B = p_HA
         on_hand.F_Bq_W = SpatialForce(-tau, -f_A)
-        output.set_value([on_object, on_hand])
+        return [on_object, on_hand]
 
 
 def _stable_gains(gains: GraspGains, plant: MultibodyPlant, g: Graspable) -> GraspGains:

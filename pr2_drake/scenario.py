@@ -13,6 +13,7 @@ Example (see ``scenarios/valve_seed7.yaml``)::
     agent_params: {params: controllers/goal_planner.yaml}
     seconds: 30            # stop earlier than the task's limit
     plant: {time_step: 0.001, contact_approximation: lagged}
+    sleep: {enabled: true, rest_time: 0.5}   # resting free objects sleep (task 6)
     camera: {enabled: true, width: 320, height: 240, fps: 10}
     limits: {max_speed: 100.0}
 
@@ -30,6 +31,7 @@ from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 from pr2_drake.camera import CameraSettings
 from pr2_drake.paths import resolve_user_path
 from pr2_drake.scene import StartPose
+from pr2_drake.sleep import SleepSettings
 from pr2_drake.tasks.base import FALL_HEIGHT
 from pr2_drake.testbed import TestbedConfig
 
@@ -96,6 +98,8 @@ class Scenario:
         camera: head camera; None = the task's own choice (on for task 6).
         start: start pose override; None = the task's seeded start.
         limits: fall height without a task and the divergence bounds.
+        sleep: when resting free objects sleep (no contacts computed until something comes
+            near; :mod:`pr2_drake.sleep`); ``sleep: {enabled: false}`` turns it off.
     """
 
     task: typing.Union[int, str, None] = None
@@ -110,6 +114,7 @@ class Scenario:
     camera: typing.Optional[CameraSettings] = None
     start: typing.Optional[StartPose] = None
     limits: EpisodeLimits = field(default_factory=EpisodeLimits)
+    sleep: SleepSettings = field(default_factory=SleepSettings)
 
     def validate(self) -> None:
         """Raise :class:`ScenarioError` naming the first bad field."""
@@ -133,6 +138,7 @@ class Scenario:
         for name in ("fall_height", "max_speed", "max_coordinate"):
             _positive(f"limits.{name}", getattr(self.limits, name))
         try:
+            self.sleep.validate()
             self.testbed_config().validate()
         except ValueError as e:
             raise ScenarioError(str(e)) from None
