@@ -226,7 +226,7 @@ def test_object_models_load_from_any_working_folder(tmp_path, monkeypatch):
 
 
 def test_the_object_is_placed_with_the_arm_as_at_the_pick():
-    seq, _ = sequencer()
+    seq, ctx = sequencer()
     tab = seq.tables["coffee_table"]
     seq.side = np.array([0.0, 1.0])  # approached from its +y side (the sofa is at -y)
     seq.r_pick = np.array([0.35, -0.18, 0.05])  # hand at the pick, heading frame
@@ -243,6 +243,14 @@ def test_the_object_is_placed_with_the_arm_as_at_the_pick():
     drop = seq._drop_point(p_WB, yaw, tab)
     assert np.allclose(seq._in_heading(p_WB, yaw, drop)[:2], [0.35, -0.18])  # arm as before
     assert drop[2] == pytest.approx(tab.height + 0.09 + seq.p.place_clearance)
+    # Set down upright: while placing, the hand target carries the object's vertical in the
+    # hand frame (the QP keeps it vertical); while walking it does not.
+    seq.hand, seq.targets, seq.up_H = 1, [None, drop], np.array([0.0, 0.6, 0.8])
+    for stage, size in ((Stage.PLACE, 6), (Stage.RELEASE, 6), (Stage.CARRY, 3)):
+        seq.stage = stage
+        ctx.get_mutable_discrete_state(0).SetAtIndex(0, float(stage))  # as an update does
+        target = seq.GetOutputPort("hand_targets").Eval(ctx)[1]
+        assert target.size == size and np.allclose(target[:3], drop)
     # A short reach would put the base against the table: it keeps place_standoff, and the
     # object lands deeper.
     seq.o_pick = np.array([0.2, -0.2, 0.0])

@@ -36,9 +36,9 @@ Stages (``stage`` output):
    SETTLE;
 6. PLACE: the hand goes back to where it held the object at the pick (relative to the base,
    so that the arm is as it was), as high over this top as it was over that one plus
-   ``place_clearance``; RELEASE; the hand goes up; step BACK; DONE. From the pick to the
-   release the hand targets carry the object's vertical in the hand frame (6-value targets):
-   the whole-body QP keeps it vertical, so round objects are set down upright.
+   ``place_clearance``; RELEASE; the hand goes up; step BACK; DONE. While placing, the hand
+   targets carry the object's vertical in the hand frame (6-value targets): the whole-body QP
+   keeps it vertical, so round objects are set down upright.
 
 FAILED (standing, the reason in ``error`` and the step log in ``log``): not found on any
 table, pick failed ``pick_tries`` times, no path, or the object fell from the hand.
@@ -116,7 +116,7 @@ class SearchAgentParams:
     pick_tries: int = 4
     carry: List[float] = field(default_factory=lambda: [0.22, 0.14, 0.30])
     place_inset: float = 0.17
-    place_clearance: float = 0.015
+    place_clearance: float = 0.002
     release_hold: float = 0.6
     back_speed: float = 0.10
     back_time: float = 2.0
@@ -509,8 +509,9 @@ class ObjectSearchSequencer(LeafSystem):
                 self.r_pick = self._in_heading(p_WB, yaw, p_WH)
                 self.o_pick = self._in_heading(p_WB, yaw, self.p_WO)
                 self.hand_over_top = float(p_WH[2] - self.tables[self.place].height)
-                # The object's vertical in the hand frame: the QP keeps it vertical until the
-                # release (it stood upright; round objects roll off when set down tilted).
+                # The object's vertical in the hand frame: the QP keeps it vertical while it
+                # is set down (it stood upright; round objects roll off when set down tilted).
+                # Not while walking: against the carry pose, the arm's 4 joints cannot.
                 self.up_H = self.model.hand_rotation(self.hand)[0].T @ np.array([0.0, 0.0, 1.0])
                 self._start_hand_path([p_WH + [0.0, 0.0, 0.10],
                                        self._carry_point(p_WB, yaw)], t)
@@ -690,8 +691,9 @@ class ObjectSearchSequencer(LeafSystem):
     def _calc_targets(self, context, output) -> None:
         targets = [None if x is None else np.array(x) for x in self.targets]
         side = self.hand
-        if self.up_H is not None and targets[side] is not None:
-            targets[side] = np.r_[targets[side], self.up_H]  # carried upright
+        if (self.up_H is not None and targets[side] is not None
+                and self.stage in (Stage.PLACE, Stage.RELEASE)):
+            targets[side] = np.r_[targets[side], self.up_H]  # set down upright
         output.set_value(targets)
 
     def _calc_pick(self, context, output) -> None:
