@@ -273,3 +273,22 @@ def test_an_object_out_of_reach_from_the_look_side_is_picked_from_the_nearest_fr
     assert np.allclose([math.cos(yaw), math.sin(yaw)], -seq.side)  # facing the table
     grid = seq.grid.inflated(seq.nav.robot_radius)
     assert grid.free(seq.path[-1])
+
+
+def test_the_grasp_point_keeps_away_from_other_objects_seen():
+    # pick latches the object nearest the hand: a bottle standing between the target and the
+    # shoulder would be picked instead, so the hand comes from another side.
+    seq, _ = sequencer()
+    seq.hand = 1
+    seq.p_WO = np.array([1.906, -2.35, 0.596])
+    shoulder = np.array([1.85, -1.98, 0.902])
+    seq.model.shoulder_position = lambda side: shoulder
+    plain = seq._grasp_point(seq.p.grasp_offset)  # nothing else seen: towards the shoulder
+    to_shoulder = (shoulder - seq.p_WO) / np.linalg.norm(shoulder - seq.p_WO)
+    assert np.allclose(plain, seq.p_WO + seq.p.grasp_offset * to_shoulder)
+    seq.others = [np.array([1.803, -2.304, 0.665])]  # a bottle on that side (seed 19)
+    g = seq._grasp_point(seq.p.grasp_offset)
+    assert np.linalg.norm(g - seq.p_WO) == pytest.approx(seq.p.grasp_offset)
+    assert np.linalg.norm(g - seq.others[0]) >= seq.p.grasp_offset + seq.p.grasp_margin
+    assert np.linalg.norm(plain - seq.others[0]) < seq.p.grasp_offset  # would have taken it
+    assert np.linalg.norm(g - shoulder) <= seq.p.reach
