@@ -124,7 +124,7 @@ class SearchAgentParams:
     pick_tries: int = 4
     carry: List[float] = field(default_factory=lambda: [0.22, 0.14, 0.30])
     place_inset: float = 0.17
-    place_clearance: float = -0.003
+    place_clearance: float = -0.001
     release_hold: float = 0.6
     back_speed: float = 0.10
     back_time: float = 2.0
