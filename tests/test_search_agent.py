@@ -259,16 +259,16 @@ def test_the_object_is_placed_with_the_arm_as_at_the_pick():
 
 
 def test_an_object_out_of_reach_from_the_look_side_is_picked_from_the_nearest_free_side():
-    # 0.39 m inside the desk's south (look) edge, 0.10 m from its west end: beyond the arm's
+    # 0.45 m inside the desk's south (look) edge, 0.10 m from its west end: beyond the arm's
     # reach from the south, so the robot walks round to the nearest side with floor.
-    p_WO = np.array([1.5, 2.89, 0.63])
+    p_WO = np.array([1.5, 2.95, 0.63])
     seq, ctx = sequencer(detector=StubDetector(p_WO))
     seq.GetInputPort("body_state").FixValue(ctx, body_state(2.0, 1.95, math.pi / 2))
     Simulator(seq, ctx).AdvanceTo(1.0)
     assert seq.stage == Stage.NAVIGATE and seq.nav_then == Stage.APPROACH
     tab = seq.tables["desk"]
     depth = tab.side_frame(seq.side)[0] - float((p_WO[:2] - tab.center) @ seq.side)
-    assert depth <= 0.21 + 1e-9  # the west end (0.10) or the north side (0.21), not 0.39
+    assert depth <= 0.15 + 1e-9  # the west end (0.10) or the north side (0.15), not 0.45
     x, y, yaw = seq.pick_goal
     assert np.allclose([math.cos(yaw), math.sin(yaw)], -seq.side)  # facing the table
     grid = seq.grid.inflated(seq.nav.robot_radius)

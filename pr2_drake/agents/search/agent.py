@@ -23,8 +23,9 @@ Stages (``stage`` output):
    (the camera is fixed on the base: the body turns); nothing found -> next place;
 3. APPROACH: small steps onto a pick pose ``pick_standoff`` from the table edge, in line with
    the object (the hand's shoulder nearer it), facing the table; an object more than
-   ``far_side`` from the look side's edge is picked from the side (of the four) nearest it
-   where there is floor (NAVIGATE round the table first); SETTLE until the gait stands;
+   ``pick_reach`` from the hand's shoulder there is picked from the side (of the four)
+   nearest it where there is floor (NAVIGATE round the table first); SETTLE until the gait
+   stands;
 4. REACH: the nearer hand rises in front of the body, moves over the grasp point
    (``pre_height`` above it) and down onto it: ``grasp_offset`` from the object's centre
    towards the shoulder, at least ``grasp_height`` above the centre (inside the 0.20 m pick
@@ -96,7 +97,7 @@ class SearchAgentParams:
     look_frames: int = 2
     search_margin: float = 0.25
     pick_standoff: float = 0.12
-    far_side: float = 0.32
+    pick_reach: float = 0.58
     stage_distance: float = 0.40
     place_standoff: float = 0.15
     hand_lateral: float = 0.10
@@ -263,6 +264,9 @@ class ObjectSearchSequencer(LeafSystem):
         self.room_of = {k: v["room"] for k, v in scene["furniture"].items()}
         self.grid = OccupancyGrid.from_scene(scene, self.nav.resolution)
         self.model = WholeBodyModel()  # forward kinematics of the observed state
+        self.model.update(self.model.q_nominal, np.zeros(self.model.nv))
+        # The shoulders in the base frame (the nominal pose has the base at the origin).
+        self.p_BS = [self.model.shoulder_position(side).copy() for side in (0, 1)]
         self._bs = self.DeclareVectorInputPort("body_state", BODY_STATE_SIZE)
         self._js = self.DeclareVectorInputPort("joint_state", JOINT_STATE_SIZE)
         self._pick_state = self.DeclareAbstractInputPort("pick_state",
@@ -680,7 +684,7 @@ class ObjectSearchSequencer(LeafSystem):
         tab = self.tables[self.place]
         look = best_side(self.grid, tab, self.p.look_distance, self.nav.robot_radius)
         # Stand at the side nearest the object (when there is room), else the look side.
-        n = self._pick_side(tab)
+        n = self._pick_side(tab, float(p_WB[2]))
         if not np.allclose(n, look):
             self.hand, stage = self._pick_pose(tab, n, self.p.stage_distance)
             if self._plan(p_WB, stage):
@@ -706,17 +710,18 @@ class ObjectSearchSequencer(LeafSystem):
         along -= sign * self.p.hand_lateral * float(left @ tan)
         return hand, self._pose_at(tab, n, along, standoff)
 
-    def _pick_side(self, tab: Table) -> np.ndarray:
-        """The look side, or, when the object is more than ``far_side`` inside its edge, the
-        side (of the four) whose edge is nearest the object, where there is floor to stand
-        on in front of the object."""
+    def _pick_side(self, tab: Table, z_base: float) -> np.ndarray:
+        """The look side, or, when the object is beyond reach from its pick pose (farther
+        than ``pick_reach`` from the hand's shoulder there; the base at height ``z_base``),
+        the side (of the four) whose edge is nearest the object, where there is floor to
+        stand on in front of the object."""
         look = best_side(self.grid, tab, self.p.look_distance, self.nav.robot_radius)
         d = self.p_WO[:2] - tab.center
 
         def depth(n: np.ndarray) -> float:
             return tab.side_frame(n)[0] - float(d @ n)
 
-        if depth(look) <= self.p.far_side:
+        if self._shoulder_to_object(tab, look, z_base) <= self.p.pick_reach:
             return look
         g = self.grid.inflated(self.nav.robot_radius)
         best, best_depth = look, depth(look) - 0.05  # walking round must gain something
@@ -727,6 +732,15 @@ class ObjectSearchSequencer(LeafSystem):
                     tab.center + n * (half + self.p.stage_distance) + tan * along):
                 best, best_depth = n, depth(n)
         return best
+
+    def _shoulder_to_object(self, tab: Table, n: np.ndarray, z_base: float) -> float:
+        """Distance [m] from the picking hand's shoulder, at the pick pose across ``n``, to
+        the object (the shoulder's place in the base frame from the robot model)."""
+        hand, (x, y, yaw) = self._pick_pose(tab, n, self.p.pick_standoff)
+        r = self.p_BS[hand]
+        c, s = math.cos(yaw), math.sin(yaw)
+        p_WS = np.array([x + c * r[0] - s * r[1], y + s * r[0] + c * r[1], z_base + r[2]])
+        return float(np.linalg.norm(p_WS - self.p_WO))
 
     # ---- outputs -----------------------------------------------------------------------------
     def _calc_cmd(self, context, output: BasicVector) -> None:
