@@ -249,3 +249,16 @@ def test_video_recorder_makes_the_camera_render_every_sample():
     ep = Episode(Scenario(camera=cam, seconds=1.0), wire)
     assert ep.testbed.GetSubsystemByName("head_camera_sampler").capture_always
     box["rec"].close()
+
+
+def test_sandboxed_system_agent_sends_camera_capture_back():
+    """The sandbox child answers a System agent's ``camera_capture`` output with the action
+    (the parent's Env applies it like the other keys)."""
+    from pr2_drake.agents.search.agent import ObjectSearchAgent
+    from pr2_drake.compete.child import SystemRunner
+    from pr2_drake.testbed import Testbed, TestbedConfig
+
+    priors = dict(Testbed(TestbedConfig(task=6, seed=0,
+                                        camera=CameraSettings(enabled=False))).scene.priors)
+    runner = SystemRunner(ObjectSearchAgent(priors))
+    assert runner.ports_out["camera_capture"].get_name() == "camera_capture"
