@@ -234,7 +234,7 @@ def test_task6_agent_renders_only_while_it_looks():
     assert frame.time == pytest.approx(times[-1])  # the last frame is kept afterwards
 
 
-def test_video_recorder_makes_the_camera_render_every_sample():
+def test_video_recorder_makes_the_camera_render_every_sample(tmp_path):
     from pr2_drake.episode import Episode
     from pr2_drake.scenario import Scenario
     from pr2_drake.video import add_camera_recorder
@@ -243,7 +243,7 @@ def test_video_recorder_makes_the_camera_render_every_sample():
     box = {}
 
     def wire(b, tb):
-        box["rec"] = add_camera_recorder(b, tb, "/dev/null")
+        box["rec"] = add_camera_recorder(b, tb, tmp_path / "head.mp4")
         return None
 
     ep = Episode(Scenario(camera=cam, seconds=1.0), wire)
