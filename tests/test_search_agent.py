@@ -226,7 +226,7 @@ def test_object_models_load_from_any_working_folder(tmp_path, monkeypatch):
 
 
 def test_the_object_is_placed_with_the_arm_as_at_the_pick():
-    seq, _ = sequencer()
+    seq, ctx = sequencer()
     tab = seq.tables["coffee_table"]
     seq.side = np.array([0.0, 1.0])  # approached from its +y side (the sofa is at -y)
     seq.r_pick = np.array([0.35, -0.18, 0.05])  # hand at the pick, heading frame
@@ -243,6 +243,14 @@ def test_the_object_is_placed_with_the_arm_as_at_the_pick():
     drop = seq._drop_point(p_WB, yaw, tab)
     assert np.allclose(seq._in_heading(p_WB, yaw, drop)[:2], [0.35, -0.18])  # arm as before
     assert drop[2] == pytest.approx(tab.height + 0.09 + seq.p.place_clearance)
+    # Set down upright: while placing, the hand target carries the object's vertical in the
+    # hand frame (the QP keeps it vertical); while walking it does not.
+    seq.hand, seq.targets, seq.up_H = 1, [None, drop], np.array([0.0, 0.6, 0.8])
+    for stage, size in ((Stage.PLACE, 6), (Stage.RELEASE, 6), (Stage.CARRY, 3)):
+        seq.stage = stage
+        ctx.get_mutable_discrete_state(0).SetAtIndex(0, float(stage))  # as an update does
+        target = seq.GetOutputPort("hand_targets").Eval(ctx)[1]
+        assert target.size == size and np.allclose(target[:3], drop)
     # A short reach would put the base against the table: it keeps place_standoff, and the
     # object lands deeper.
     seq.o_pick = np.array([0.2, -0.2, 0.0])
@@ -265,3 +273,22 @@ def test_an_object_out_of_reach_from_the_look_side_is_picked_from_the_nearest_fr
     assert np.allclose([math.cos(yaw), math.sin(yaw)], -seq.side)  # facing the table
     grid = seq.grid.inflated(seq.nav.robot_radius)
     assert grid.free(seq.path[-1])
+
+
+def test_the_grasp_point_keeps_away_from_other_objects_seen():
+    # pick latches the object nearest the hand: a bottle standing between the target and the
+    # shoulder would be picked instead, so the hand comes from another side.
+    seq, _ = sequencer()
+    seq.hand = 1
+    seq.p_WO = np.array([1.906, -2.35, 0.596])
+    shoulder = np.array([1.85, -1.98, 0.902])
+    seq.model.shoulder_position = lambda side: shoulder
+    plain = seq._grasp_point(seq.p.grasp_offset)  # nothing else seen: towards the shoulder
+    to_shoulder = (shoulder - seq.p_WO) / np.linalg.norm(shoulder - seq.p_WO)
+    assert np.allclose(plain, seq.p_WO + seq.p.grasp_offset * to_shoulder)
+    seq.others = [np.array([1.803, -2.304, 0.665])]  # a bottle on that side (seed 19)
+    g = seq._grasp_point(seq.p.grasp_offset)
+    assert np.linalg.norm(g - seq.p_WO) == pytest.approx(seq.p.grasp_offset)
+    assert np.linalg.norm(g - seq.others[0]) >= seq.p.grasp_offset + seq.p.grasp_margin
+    assert np.linalg.norm(plain - seq.others[0]) < seq.p.grasp_offset  # would have taken it
+    assert np.linalg.norm(g - shoulder) <= seq.p.reach

@@ -28,7 +28,9 @@ Stages (``stage`` output):
 4. REACH: the nearer hand rises in front of the body, moves over the grasp point
    (``pre_height`` above it) and down onto it: ``grasp_offset`` from the object's centre
    towards the shoulder, at least ``grasp_height`` above the centre (inside the 0.20 m pick
-   distance, as near the shoulder as that allows); PICK: ``pick`` until ``pick_state`` reports
+   distance, as near the shoulder as that allows), or, when another object seen with it would
+   be nearly as near that point (``pick`` latches the nearest), higher over it or from
+   another side (``grasp_margin``); PICK: ``pick`` until ``pick_state`` reports
    it attached (timeout: closer to the centre and try again, ``pick_tries`` in all);
 5. LIFT to the carry pose, NAVIGATE (holding it) to the coffee table, APPROACH the place
    pose from which, the arm as at the pick, the object is over the table's centre line
@@ -36,9 +38,9 @@ Stages (``stage`` output):
    SETTLE;
 6. PLACE: the hand goes back to where it held the object at the pick (relative to the base,
    so that the arm is as it was), as high over this top as it was over that one plus
-   ``place_clearance``; RELEASE; the hand goes up; step BACK; DONE. From the pick to the
-   release the hand targets carry the object's vertical in the hand frame (6-value targets):
-   the whole-body QP keeps it vertical, so round objects are set down upright.
+   ``place_clearance``; RELEASE; the hand goes up; step BACK; DONE. While placing, the hand
+   targets carry the object's vertical in the hand frame (6-value targets): the whole-body QP
+   keeps it vertical, so round objects are set down upright.
 
 FAILED (standing, the reason in ``error`` and the step log in ``log``): not found on any
 table, pick failed ``pick_tries`` times, no path, or the object fell from the hand.
@@ -110,13 +112,19 @@ class SearchAgentParams:
     pre_height: float = 0.08
     grasp_height: float = 0.05
     grasp_offset: float = 0.12
+    grasp_margin: float = 0.04
+    grasp_elevations_deg: List[float] = field(default_factory=lambda: [55.0, 70.0, 85.0])
+    grasp_azimuths_deg: List[float] = field(
+        default_factory=lambda: [0.0, 45.0, -45.0, 90.0, -90.0, 135.0, -135.0, 180.0])
+    hand_clearance: float = 0.05
+    reach: float = 0.44
     lift_forward: float = 0.05
     reach_time: float = 1.5
     pick_timeout: float = 1.2
     pick_tries: int = 4
     carry: List[float] = field(default_factory=lambda: [0.22, 0.14, 0.30])
     place_inset: float = 0.17
-    place_clearance: float = 0.015
+    place_clearance: float = -0.003
     release_hold: float = 0.6
     back_speed: float = 0.10
     back_time: float = 2.0
@@ -303,6 +311,7 @@ class ObjectSearchSequencer(LeafSystem):
         self.look_tries = 0
         self.t_still = -1.0
         self.p_WO: Optional[np.ndarray] = None  # detected target centre
+        self.others: list[np.ndarray] = []  # other objects seen with it (centres, W)
         self.pick_goal: Optional[np.ndarray] = None  # (x, y, yaw) to pick from
         self.nav_then = Stage.LOOK  # what follows NAVIGATE
         self.hand = 1
@@ -426,13 +435,38 @@ class ObjectSearchSequencer(LeafSystem):
         self.error = f"target {self.instruction.target!r} not found on any table"
 
     def _grasp_point(self, offset: float) -> np.ndarray:
-        """``offset`` [m] from the object's centre towards the hand's shoulder, not below
-        the centre plus ``grasp_height`` (within the pick distance, as near the shoulder as
-        that allows)."""
+        """``offset`` [m] from the object's centre (inside the pick distance): towards the
+        hand's shoulder, not below the centre plus ``grasp_height``; but when another object
+        seen would be less than ``grasp_margin`` farther from that point than the target (the
+        pick latches the nearest object), the first of the other directions (turned about the
+        target, then higher over it) that keeps that margin and stays within ``reach`` of the
+        shoulder, else the one with the widest margin."""
+        p = self.p
         o = self.p_WO
-        d = self.model.shoulder_position(self.hand) - o
-        d[2] = max(d[2], self.p.grasp_height)
-        return o + offset * d / max(float(np.linalg.norm(d)), 1e-6)
+        s = self.model.shoulder_position(self.hand)
+        d = s - o
+        flat = float(np.hypot(d[0], d[1]))
+        u0 = d[:2] / max(flat, 1e-6)
+        el0 = math.atan2(max(float(d[2]), p.grasp_height), flat)
+        best, best_key = None, None
+        for el in [el0] + [math.radians(e) for e in p.grasp_elevations_deg]:
+            # Over the target only when the hand clears its top.
+            if el < el0 or (el > el0 and offset * math.sin(el) < 0.5 * self.object_height
+                            + p.hand_clearance):
+                continue
+            for az in p.grasp_azimuths_deg:
+                c, sn = math.cos(math.radians(az)), math.sin(math.radians(az))
+                u = np.array([c * u0[0] - sn * u0[1], sn * u0[0] + c * u0[1]])
+                g = o + offset * np.array([math.cos(el) * u[0], math.cos(el) * u[1],
+                                           math.sin(el)])
+                margin = min((float(np.linalg.norm(g - q)) for q in self.others),
+                             default=np.inf) - offset
+                if margin >= p.grasp_margin and np.linalg.norm(g - s) <= p.reach:
+                    return g
+                key = (np.linalg.norm(g - s) <= p.reach, margin)
+                if best_key is None or key > best_key:
+                    best, best_key = g, key
+        return best
 
     def _start_hand_path(self, points: list, t: float) -> None:
         start = self.model.hand_point(self.hand)[0].copy()
@@ -513,8 +547,9 @@ class ObjectSearchSequencer(LeafSystem):
                 self.r_pick = self._in_heading(p_WB, yaw, p_WH)
                 self.o_pick = self._in_heading(p_WB, yaw, self.p_WO)
                 self.hand_over_top = float(p_WH[2] - self.tables[self.place].height)
-                # The object's vertical in the hand frame: the QP keeps it vertical until the
-                # release (it stood upright; round objects roll off when set down tilted).
+                # The object's vertical in the hand frame: the QP keeps it vertical while it
+                # is set down (it stood upright; round objects roll off when set down tilted).
+                # Not while walking: against the carry pose, the arm's 4 joints cannot.
                 self.up_H = self.model.hand_rotation(self.hand)[0].T @ np.array([0.0, 0.0, 1.0])
                 self._start_hand_path([p_WH + [0.0, 0.0, 0.10],
                                        self._carry_point(p_WB, yaw)], t)
@@ -618,7 +653,8 @@ class ObjectSearchSequencer(LeafSystem):
                 det[2] - tab.height) < 0.35:
             self.p_WO = det
             self.log.append(f"{t:7.2f} found {self.instruction.target} at "
-                            f"{np.round(det, 3).tolist()} on {self.place}")
+                            f"{np.round(det, 3).tolist()} on {self.place} "
+                            f"({len(self.others)} other objects seen)")
             self._start_approach(p_WB, t)
             return
         if self.look_tries >= p.look_frames:
@@ -628,11 +664,20 @@ class ObjectSearchSequencer(LeafSystem):
                 self._next_place(p_WB, t)
 
     def _detect(self, context) -> Optional[np.ndarray]:
+        """The target's centre p_WO in this frame, or None; ``self.others`` gets the other
+        objects' centres when the detector lists every object (``detect``)."""
         frame = self._rgbd.Eval(context)
         if frame.depth.size == 0:
             return None
         X_WC = self.kin.camera_pose(self._bs.Eval(context), self._js.Eval(context))
-        hit = self.detector.find(frame.color, frame.depth, X_WC, self.instruction.target)
+        target = self.instruction.target
+        if hasattr(self.detector, "detect"):
+            found = self.detector.detect(frame.color, frame.depth, X_WC)
+            hit = next((d for d in found if d.label == target), None)
+            if hit is not None:
+                self.others = [np.asarray(d.p_WO, float) for d in found if d is not hit]
+        else:
+            hit = self.detector.find(frame.color, frame.depth, X_WC, target)
         return None if hit is None else np.asarray(hit.p_WO, float)
 
     def _start_approach(self, p_WB, t: float) -> None:
@@ -694,8 +739,9 @@ class ObjectSearchSequencer(LeafSystem):
     def _calc_targets(self, context, output) -> None:
         targets = [None if x is None else np.array(x) for x in self.targets]
         side = self.hand
-        if self.up_H is not None and targets[side] is not None:
-            targets[side] = np.r_[targets[side], self.up_H]  # carried upright
+        if (self.up_H is not None and targets[side] is not None
+                and self.stage in (Stage.PLACE, Stage.RELEASE)):
+            targets[side] = np.r_[targets[side], self.up_H]  # set down upright
         output.set_value(targets)
 
     def _calc_pick(self, context, output) -> None:
