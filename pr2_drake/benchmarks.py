@@ -1,10 +1,12 @@
 """``pr2-drake bench``: speed benchmarks. Figures in docs come from these commands.
 
     pr2-drake bench sim [--seconds 10] [--repeats 3] [--task N] [--sleep on|off|both]
-                        [--no-camera] [--profile]
+                        [--capture on|off|both] [--no-camera] [--profile]
         real-time factor and CPU seconds per simulated second of the standing robot in
         closed loop (median of repeats), with object sleeping on, off or both (alternating
-        runs), and the split of wall time between the plant step and the Python blocks.
+        runs), the head camera capturing at every sample or never (``camera_capture`` False:
+        only the initialization frame renders; what an agent that asks for no frame costs),
+        and the split of wall time between the plant step and the Python blocks.
     pr2-drake bench camera [--resolutions paper|640x480,...] [--task 6,1] [--quality low,high]
         colour+depth renders per wall-clock second of the head camera, per task, preset and
         resolution, beside the paper's figures (``paper``: its eight resolutions).
@@ -37,9 +39,10 @@ import sys
 import time
 
 
-def _standing_episode(task, seed: int = 0, camera=None, sleep: bool = True):
+def _standing_episode(task, seed: int = 0, camera=None, sleep: bool = True,
+                      capture: bool = True):
     """The standing controller's episode of ``task``, initialized (object sleeping on or
-    off; :mod:`pr2_drake.sleep`)."""
+    off; :mod:`pr2_drake.sleep`; ``capture`` False: the camera, if on, renders no sample)."""
     from pr2_drake.controllers.standing import StandingController
     from pr2_drake.episode import Episode, wire_system
     from pr2_drake.scenario import Scenario
@@ -48,6 +51,8 @@ def _standing_episode(task, seed: int = 0, camera=None, sleep: bool = True):
     episode = Episode(Scenario(task=task, seed=seed, camera=camera, seconds=math.inf,
                                sleep=SleepSettings(enabled=sleep)),
                       wire_system(StandingController()))
+    if not capture and episode.testbed.HasInputPort("camera_capture"):
+        episode.testbed.GetInputPort("camera_capture").FixValue(episode.tb_context, False)
     episode.initialize()
     return episode
 
@@ -65,18 +70,24 @@ def bench_sim(argv: list[str]) -> int:
     p.add_argument("--task", default=None)
     p.add_argument("--sleep", choices=("on", "off", "both"), default="on",
                    help="object sleeping (pr2_drake.sleep); both: alternating runs of each")
+    p.add_argument("--capture", choices=("on", "off", "both"), default="on",
+                   help="head camera renders at every sample (on) or never (off: its "
+                        "camera_capture input False); both: alternating runs of each")
     p.add_argument("--no-camera", action="store_true", help="head camera off (task 6)")
     p.add_argument("--profile", action="store_true", help="also print the time split")
     a = p.parse_args(argv)
     from pr2_drake.camera import CameraSettings
 
     camera = CameraSettings(enabled=False) if a.no_camera else None
-    modes = ["on", "off"] if a.sleep == "both" else [a.sleep]
-    rates: dict[str, list[float]] = {m: [] for m in modes}
-    cpus: dict[str, list[float]] = {m: [] for m in modes}
+    sleeps = ["on", "off"] if a.sleep == "both" else [a.sleep]
+    captures = ["on", "off"] if a.capture == "both" else [a.capture]
+    modes = [(s, c) for s in sleeps for c in captures]
+    rates: dict[tuple, list[float]] = {m: [] for m in modes}
+    cpus: dict[tuple, list[float]] = {m: [] for m in modes}
     for _ in range(a.repeats):
         for m in modes:  # alternating: a change of the machine's load hits both alike
-            episode = _standing_episode(a.task, camera=camera, sleep=m == "on")
+            episode = _standing_episode(a.task, camera=camera, sleep=m[0] == "on",
+                                        capture=m[1] == "on")
             start, cpu = time.perf_counter(), time.process_time()
             episode.advance_to(a.seconds)
             rates[m].append(a.seconds / (time.perf_counter() - start))
@@ -85,12 +96,14 @@ def bench_sim(argv: list[str]) -> int:
     cam = ", camera off" if a.no_camera else ""
     print(f"standing controller on {where}, {a.seconds:g} s simulated, physics step 1 ms{cam}")
     for m in modes:
-        print(f"  sleeping {m:<3}  real-time factor: median {statistics.median(rates[m]):.2f} "
+        label = f"sleeping {m[0]:<3}" + (f", capture {m[1]:<3}" if a.capture != "on" else "")
+        print(f"  {label}  real-time factor: median {statistics.median(rates[m]):.2f} "
               f"(runs: {', '.join(f'{r:.2f}' for r in rates[m])}); CPU s per simulated s: "
               f"median {statistics.median(cpus[m]):.3f} "
               f"(runs: {', '.join(f'{c:.3f}' for c in cpus[m])})")
     if a.profile:
-        episode = _standing_episode(a.task, camera=camera, sleep=modes[0] == "on")
+        episode = _standing_episode(a.task, camera=camera, sleep=modes[0][0] == "on",
+                                    capture=modes[0][1] == "on")
         prof = cProfile.Profile()
         prof.enable()
         episode.advance_to(min(a.seconds, 3.0))

@@ -99,13 +99,17 @@ def _real_in(name: str, value, lower: float, upper: float, unit: str,
 
 @dataclass
 class RgbdFrame:
-    """One camera frame: colour HxWx3 uint8 and distance to the image plane HxW float32 [m]."""
+    """One camera frame: colour HxWx3 uint8 and distance to the image plane HxW float32 [m].
+
+    ``time``: the simulated time at which it was rendered [s] (a sampler that captures on
+    demand keeps its last frame, so a consumer can tell how old it is; 0 for a blank frame)."""
 
     color: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 3), np.uint8))
     depth: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), np.float32))
+    time: float = 0.0
 
     def __deepcopy__(self, memo) -> "RgbdFrame":
-        return RgbdFrame(self.color.copy(), self.depth.copy())
+        return RgbdFrame(self.color.copy(), self.depth.copy(), float(self.time))
 
 
 # The sun: the one light that casts shadows, from the south-west, 50 deg above the horizon (the
@@ -217,32 +221,56 @@ def renderer_params(quality: str) -> RenderEngineVtkParams:
 
 class RgbdSampler(LeafSystem):
     """Samples the sensor's images at ``fps`` (and at initialization) into an
-    :class:`RgbdFrame` held between samples: the renderer runs only at the camera's rate.
+    :class:`RgbdFrame` held between samples: the renderer runs only at the camera's rate, and
+    only when a frame is asked for.
 
-    Input ports: ``color_image`` (ImageRgba8U), ``depth_image_32f`` (ImageDepth32F).
+    Input ports: ``color_image`` (ImageRgba8U), ``depth_image_32f`` (ImageDepth32F),
+    ``capture`` (bool, ``Value[bool]``, optional): capture on demand. Unconnected (or ``capture_always``), every
+    sample renders. Connected, a sample at which it reads False renders nothing and the
+    previous frame (with its ``time``) is kept; the initialization always renders.
     Output port: ``rgbd`` (RgbdFrame), no direct feedthrough.
+
+    Attributes:
+        capture_always: ignore ``capture`` (set by the head-camera video recorder, which
+            writes every sample).
     """
 
     __slots__ = ()  # see pr2_drake.lifetime: lets the collector free the diagram
 
     def __init__(self, width: int, height: int, fps: float):
         super().__init__()
+        self.capture_always = False
         self._color = self.DeclareAbstractInputPort(
             "color_image", AbstractValue.Make(ImageRgba8U(width, height))
         )
         self._depth = self.DeclareAbstractInputPort(
             "depth_image_32f", AbstractValue.Make(ImageDepth32F(width, height))
         )
+        self._capture = self.DeclareAbstractInputPort("capture", AbstractValue.Make(False))
         blank = RgbdFrame(np.zeros((height, width, 3), np.uint8),
                           np.zeros((height, width), np.float32))
         self._frame = self.DeclareAbstractState(AbstractValue.Make(blank))
-        self.DeclareInitializationUnrestrictedUpdateEvent(self._sample)
+        self.DeclareInitializationUnrestrictedUpdateEvent(self._initial)
         self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / fps, 0.0, self._sample)
         self.DeclareStateOutputPort("rgbd", self._frame)
 
+    def wants_frame(self, context) -> bool:
+        """Whether the sample at this context's time renders (see the class docstring)."""
+        if self.capture_always or not self._capture.HasValue(context):
+            return True
+        return bool(self._capture.Eval(context))
+
+    def _initial(self, context, state) -> None:
+        self._render(context, state)
+
     def _sample(self, context, state) -> None:
+        if self.wants_frame(context):
+            self._render(context, state)
+        # else: the state handed to an unrestricted update holds the current frame: kept
+
+    def _render(self, context, state) -> None:
         frame = RgbdFrame(self._color.Eval(context).data[:, :, :3].copy(),
-                          self._depth.Eval(context).data[:, :, 0].copy())
+                          self._depth.Eval(context).data[:, :, 0].copy(), context.get_time())
         state.get_mutable_abstract_state(int(self._frame)).set_value(frame)
 
 

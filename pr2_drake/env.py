@@ -120,6 +120,8 @@ class Env:
                 self._ports[f"{group}_command"].FixValue(ctx, parsed[group])
         self._ports["pick"].FixValue(ctx, parsed["pick"])
         self._ports["release"].FixValue(ctx, parsed["release"])
+        if "camera_capture" in self._ports:  # (without a camera the key changes nothing)
+            self._ports["camera_capture"].FixValue(ctx, parsed["camera_capture"])
 
     @property
     def status(self) -> EpisodeStatus:
@@ -222,3 +224,5 @@ class Env:
         self._ports["legs_command"].FixValue(ctx, JointGroupCommand.effort(np.zeros(10)))
         self._ports["pick"].FixValue(ctx, "")
         self._ports["release"].FixValue(ctx, False)
+        if "camera_capture" in self._ports:
+            self._ports["camera_capture"].FixValue(ctx, True)

@@ -7,6 +7,8 @@ Observation (``obs``)::
     obs["agent"]["body_state"]["world_pos" (3) | "world_orient" (w, x, y, z)
                                | "linear_velocities" (3) | "angular_velocities" (3)]
     obs["cam"]["rgb"] (H x W x 3 uint8), obs["cam"]["distance_to_image_plane"] (H x W float32, m)
+    obs["cam"]["time"]           simulated time the frame was rendered at [s] (older than
+                                 ``time`` when the action's ``camera_capture`` was False)
     obs["pick"]                  bool: something is attached to a hand
     obs["pick_state"]            {"hand": ..., "object": ...}
     obs["time"]                  simulated time [s]
@@ -41,7 +43,10 @@ Action::
               "stiffness": [8] or None, "dampings": [8] or None},
      "legs": {... same with 10 values ...},
      "pick": "left_hand" | "right_hand" | None,
-     "release": bool}
+     "release": bool,
+     "camera_capture": bool}   optional; False: the head camera renders no new frame while
+                               this action holds (``obs["cam"]`` keeps the last one); absent
+                               or None: it renders at every sample (its ``fps``)
 
 All angles in rad, positions in m, in the world frame; joints in the original order
 (:data:`pr2_drake.robot.params.ARM_JOINTS`, :data:`LEG_JOINTS`). A malformed action is a
@@ -75,7 +80,7 @@ from pr2_drake.ports import (
     validate_command,
 )
 
-ACTION_KEYS = ("arms", "legs", "pick", "release")
+ACTION_KEYS = ("arms", "legs", "pick", "release", "camera_capture")
 GROUP_KEYS = ("ctrl_mode", "joint_values", "stiffness", "dampings")
 GROUP_SIZES = {"arms": N_ARMS, "legs": N_LEGS}
 
@@ -132,7 +137,8 @@ def observation_from_ports(values: dict[str, Any], time: float, priors: dict[str
     obs["language_instruction"] = ""
     if "rgbd" in values:
         frame = values["rgbd"]
-        obs["cam"] = {"rgb": frame.color, "distance_to_image_plane": frame.depth}
+        obs["cam"] = {"rgb": frame.color, "distance_to_image_plane": frame.depth,
+                      "time": float(frame.time)}
     if "task_feedback" in values:
         feedback = values["task_feedback"]
         obs.update(feedback)
@@ -204,7 +210,7 @@ def group_command(action: dict[str, Any], group: str) -> JointGroupCommand:
 
 def parse_action(action: dict[str, Any]) -> dict[str, Any]:
     """Validate a PR2 action; returns {"arms": cmd|None, "legs": cmd|None, "pick": str,
-    "release": bool}. Groups absent from the action (or None) are None: keep the previous
+    "release": bool, "camera_capture": bool}. Groups absent from the action (or None) are None: keep the previous
     command. Everything is checked before anything is returned, so a refused action changes
     nothing.
 
@@ -212,7 +218,8 @@ def parse_action(action: dict[str, Any]) -> dict[str, Any]:
     values as lists of ints/floats or real numpy arrays of the group's length, see
     :func:`pr2_drake.ports.real_vector`) or :class:`JointGroupCommand` objects; ``pick`` None,
     "" (no pick), "left_hand" or "right_hand" (str, numpy str too); ``release`` a bool or
-    numpy bool, None = False.
+    numpy bool, None = False; ``camera_capture`` a bool or numpy bool, None or absent = True
+    (the camera renders at every sample).
 
     Raises:
         ValueError: naming the key (``action['legs']['joint_values']``, ``action['pick']``...)
@@ -240,6 +247,13 @@ def parse_action(action: dict[str, Any]) -> dict[str, Any]:
         raise ValueError(f"action['release']: expected a bool, got "
                          f"{type(release).__name__} {release!r:.60}")
     out["release"] = bool(release)
+    capture = action.get("camera_capture")
+    if capture is None:
+        capture = True
+    if not isinstance(capture, (bool, np.bool_)):
+        raise ValueError(f"action['camera_capture']: expected a bool, got "
+                         f"{type(capture).__name__} {capture!r:.60}")
+    out["camera_capture"] = bool(capture)
     return out
 
 

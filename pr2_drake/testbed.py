@@ -5,7 +5,9 @@ the grasp system, the head RGB-D camera (optional), the task referee (when a tas
 optionally, a MeshcatVisualizer.
 
 Input ports:  ``arms_command``, ``legs_command`` (JointGroupCommand), ``pick`` (str),
-``release`` (bool).
+``release`` (bool), ``camera_capture`` (bool, when the camera is on; optional: unconnected,
+the camera renders at every sample; False at a sample time: no render, ``rgbd`` keeps the last
+frame).
 Output ports: ``joint_state`` (54), ``body_state`` (13) (layouts in :mod:`pr2_drake.ports`),
 ``pick_state`` (PickState), ``plant_state`` (full plant [q; v]), ``contact_results``,
 ``geometry_query`` (SceneGraph queries, to attach more sensors), ``rgbd`` (RgbdFrame, when
@@ -253,6 +255,8 @@ class Testbed(Diagram):
             self.camera,
         )
         builder.ExportOutput(sampler.GetOutputPort("rgbd"), "rgbd")
+        # Capture on demand: unconnected, every sample renders (RgbdSampler).
+        builder.ExportInput(sampler.GetInputPort("capture"), "camera_capture")
 
     def _add_referee(self, builder: DiagramBuilder) -> None:
         referee = builder.AddNamedSystem(

@@ -75,6 +75,8 @@ def add_camera_recorder(builder: DiagramBuilder, testbed, path: str | Path,
     """Add a :class:`CameraRecorder` fed by ``testbed``'s ``rgbd`` port (the camera must be on)."""
     if not testbed.camera.enabled:
         raise ValueError("--record-camera needs the head camera: use --camera on")
+    # A video wants every sample: the camera ignores an agent's ``camera_capture``.
+    testbed.GetSubsystemByName("head_camera_sampler").capture_always = True
     recorder = builder.AddNamedSystem("camera_recorder",
                                       CameraRecorder(path, testbed.camera, depth))
     builder.Connect(testbed.GetOutputPort("rgbd"), recorder.get_input_port())

@@ -134,9 +134,18 @@ BAD = [
     ("release-float", {"release": 0.0}, r"action\['release'\]: expected a bool, got float"),
     ("release-array", {"release": np.array([True])}, r"action\['release'\]: expected a bool, got ndarray"),
     ("release-list", {"release": [True]}, r"action\['release'\]: expected a bool, got list"),
+    # -- camera_capture
+    ("capture-int", {"camera_capture": 0},
+     r"action\['camera_capture'\]: expected a bool, got int"),
+    ("capture-str", {"camera_capture": "off"},
+     r"action\['camera_capture'\]: expected a bool, got str"),
+    ("capture-array", {"camera_capture": np.array([False])},
+     r"action\['camera_capture'\]: expected a bool, got ndarray"),
     # -- a good group beside a bad key: nothing may be applied (all checked first)
     ("good-legs-bad-pick", {**legs(MARK), "pick": np.array(["left_hand"])}, r"action\['pick'\]"),
     ("good-legs-bad-release", {**legs(MARK), "release": "no"}, r"action\['release'\]"),
+    ("good-legs-bad-capture", {**legs(MARK), "camera_capture": 1.0},
+     r"action\['camera_capture'\]"),
     ("good-legs-bad-arms", {**legs(MARK), **arms(None)}, r"action\['arms'\]\['joint_values'\] is None"),
     ("good-legs-bad-arms-mode", {**legs(MARK), **arms(ctrl_mode="pos")}, r"action\['arms'\]\['ctrl_mode'\]"),
 ]
@@ -218,14 +227,19 @@ GOOD = [
     ("pick-np-str", {"pick": np.str_("right_hand")}),
     ("groups-none", {"arms": None, "legs": None}),
     ("command-object", {"legs": JointGroupCommand("effort", [0] * 10)}),
+    ("capture-false", {"camera_capture": False}),  # no camera (task None): changes nothing
+    ("capture-np-bool", {"camera_capture": np.bool_(True)}),
+    ("capture-none", {"camera_capture": None}),
 ]
 
 
 @pytest.mark.parametrize("action", [c[1] for c in GOOD], ids=[c[0] for c in GOOD])
 def test_good_edge_cases_are_accepted(action):
     parsed = parse_action(action)
-    assert set(parsed) == {"arms", "legs", "pick", "release"}
+    assert set(parsed) == {"arms", "legs", "pick", "release", "camera_capture"}
     assert type(parsed["pick"]) is str and type(parsed["release"]) is bool
+    assert type(parsed["camera_capture"]) is bool
+    assert parsed["camera_capture"] == bool(action.get("camera_capture", True) in (None, True))
     for group, n in (("arms", 8), ("legs", 10)):
         cmd = parsed[group]
         if action.get(group) is None:

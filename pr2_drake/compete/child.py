@@ -44,7 +44,8 @@ _HEADER = struct.Struct(">I")
 ALLOWED_INPUTS = ("joint_state", "body_state", "pick_state", "task_feedback", "instruction",
                   "rgbd", "score")
 TIME_TOLERANCE = 1e-7  # times closer than this are the same tick (sums of steps drift) [s]
-_OUTPUTS = {"legs_command": "legs", "arms_command": "arms", "pick": "pick", "release": "release"}
+_OUTPUTS = {"legs_command": "legs", "arms_command": "arms", "pick": "pick", "release": "release",
+            "camera_capture": "camera_capture"}
 _FORBIDDEN_EVENTS = ("socket.__new__", "socket.connect", "socket.bind", "os.fork", "os.forkpty",
                      "os.system", "os.posix_spawn", "os.exec", "os.spawn", "subprocess.Popen",
                      "os.kill", "os.killpg", "signal.pthread_kill", "pty.spawn")

@@ -233,7 +233,8 @@ class ObjectSearchSequencer(LeafSystem):
 
     Inputs: ``body_state``, ``joint_state``, ``pick_state``, ``rgbd`` (RgbdFrame),
     ``walker_status``. Outputs: ``velocity_command`` (3), ``hand_targets`` ([left, right]),
-    ``pick`` (str), ``release`` (bool), ``stage`` (1).
+    ``pick`` (str), ``release`` (bool), ``stage`` (1), ``camera_capture`` (bool: True in
+    LOOK, the only stage that uses frames).
 
     Args:
         instruction: the parsed sentence, or None with ``error`` the parser's message.
@@ -290,6 +291,9 @@ class ObjectSearchSequencer(LeafSystem):
                                        prerequisites_of_calc=after_update)
         self.DeclareVectorOutputPort("stage", 1, weak_calc(self._calc_stage),
                                      prerequisites_of_calc=after_update)
+        self.DeclareAbstractOutputPort("camera_capture", lambda: AbstractValue.Make(False),
+                                       weak_calc(self._calc_capture),
+                                       prerequisites_of_calc=after_update)
         self.DeclarePeriodicUnrestrictedUpdateEvent(self.p.period, 0.0, self._update)
         self.reset()
 
@@ -763,13 +767,19 @@ class ObjectSearchSequencer(LeafSystem):
     def _calc_stage(self, context, output: BasicVector) -> None:
         output.SetFromVector([float(self.stage)])
 
+    def _calc_capture(self, context, output) -> None:
+        # Frames are used only in LOOK (``_detect``, after ``look_settle`` there): the camera
+        # renders from the first sample in LOOK on, and not at all otherwise.
+        output.set_value(bool(self.stage == Stage.LOOK))
+
 
 class ObjectSearchAgent(Diagram):
     """Task 6 reference agent (see the module docstring).
 
     Input ports: ``joint_state``, ``body_state``, ``pick_state``, ``rgbd``. Output ports:
     ``legs_command``, ``arms_command`` (effort, from the whole-body QP), ``pick``,
-    ``release``, ``velocity_command`` and ``stage``.
+    ``release``, ``velocity_command``, ``stage`` and ``camera_capture`` (the camera renders
+    only while the sequencer looks).
 
     Args:
         priors: the task's priors (``instruction``, ``object_models``, ``coffee_table_*``).
@@ -835,4 +845,5 @@ class ObjectSearchAgent(Diagram):
         builder.ExportOutput(seq.GetOutputPort("release"), "release")
         builder.ExportOutput(seq.GetOutputPort("velocity_command"), "velocity_command")
         builder.ExportOutput(seq.GetOutputPort("stage"), "stage")
+        builder.ExportOutput(seq.GetOutputPort("camera_capture"), "camera_capture")
         builder.BuildInto(self)
