@@ -240,11 +240,13 @@ class HandUprightTask(Task):
     """Keeps the axis ``plan.hands[side].up`` of the hand frame H vertical in W: rows about the
     world x and y axes only (the heading about z stays free), error (R_WH u) x z_W [rad]. The
     arm has 4 joints, so with the position task this trades tilt against position through the
-    weights (no rows when ``up`` is None)."""
+    weights (no rows when ``up`` is None). The error is saturated at ``max_error``, so that a
+    hand coming from a far tilt is turned without a burst of arm torque."""
 
-    def __init__(self, side: int, gains: TaskGains):
+    def __init__(self, side: int, gains: TaskGains, max_error: float = 0.2):
         self.side = side
         self.gains = gains
+        self.max_error = max_error  # [rad] (sine of the tilt) the error is saturated at
         self.w = np.full(2, gains.weight)
 
     def add_to(self, cost, model, plan) -> None:
@@ -253,6 +255,9 @@ class HandUprightTask(Task):
             return
         R, w, J, jdv = model.hand_rotation(self.side)
         e = np.cross(R @ h.up, [0.0, 0.0, 1.0])
+        n = float(np.linalg.norm(e))
+        if n > self.max_error:  # a large tilt (say from a carry pose) is corrected gently
+            e *= self.max_error / n
         a = self.gains.kp * e - self.gains.kd * w - jdv
         cost.add(J[:2], a[:2], self.w)
 

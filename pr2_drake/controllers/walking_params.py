@@ -173,6 +173,8 @@ class ArmParams:
     hand: TaskGains = field(default_factory=lambda: TaskGains(150.0, 25.0, 100.0))
     # A hand target's "up" axis (a held object's vertical) kept vertical [1/s^2, 1/s, weight].
     hand_upright: TaskGains = field(default_factory=lambda: TaskGains(100.0, 20.0, 200.0))
+    # ... its error (sine of the tilt) saturated at this, so a far tilt is turned gently.
+    hand_upright_max_error: float = 0.2
     # Hand targets farther than this from the shoulder are pulled back onto this sphere [m].
     reach_max: float = 0.42
     # ... and below this height above the ground under the robot (mean sole height) [m].

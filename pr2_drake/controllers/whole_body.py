@@ -163,8 +163,10 @@ class WholeBodyController:
             np.r_[np.full(n_arms, arm_gains.weight), np.full(n_legs, p.posture_legs.weight)])
         if self.arms_driven:
             self.tasks += [HandPositionTask(0, p.arms.hand), HandPositionTask(1, p.arms.hand),
-                           HandUprightTask(0, p.arms.hand_upright),
-                           HandUprightTask(1, p.arms.hand_upright)]
+                           HandUprightTask(0, p.arms.hand_upright,
+                                           p.arms.hand_upright_max_error),
+                           HandUprightTask(1, p.arms.hand_upright,
+                                           p.arms.hand_upright_max_error)]
         self.tasks.append(self.posture)
         self.cost = TaskCost(m.nv)
         # The QP: leg (and arm) torque limits and joint ranges from the plant.
