@@ -240,7 +240,8 @@ class ObjectSearchSequencer(LeafSystem):
         instruction: the parsed sentence, or None with ``error`` the parser's message.
         scene: the task YAML's public ``scene`` block (walls, furniture, objects' homes).
         detector: ``find(rgb, depth, X_WC, target) -> Detection | None``.
-        object_height: the target's height [m] (its model), for the place height.
+        object_height: the target's height [m] (its model): the hand clears its top when it
+            comes from above.
         coffee_table: (x, y, top z) and size (x, y) of the destination, from the priors.
     """
 
