@@ -240,21 +240,20 @@ def parse_action(action: dict[str, Any]) -> dict[str, Any]:
         shown = repr(pick) if isinstance(pick, str) else f"{type(pick).__name__} {pick!r:.60}"
         raise ValueError(f"action['pick']: expected 'left_hand', 'right_hand' or None, got {shown}")
     out["pick"] = str(pick)
-    release = action.get("release", False)
-    if release is None:
-        release = False
-    if not isinstance(release, (bool, np.bool_)):
-        raise ValueError(f"action['release']: expected a bool, got "
-                         f"{type(release).__name__} {release!r:.60}")
-    out["release"] = bool(release)
-    capture = action.get("camera_capture")
-    if capture is None:
-        capture = True
-    if not isinstance(capture, (bool, np.bool_)):
-        raise ValueError(f"action['camera_capture']: expected a bool, got "
-                         f"{type(capture).__name__} {capture!r:.60}")
-    out["camera_capture"] = bool(capture)
+    out["release"] = _bool_field(action, "release", False)
+    out["camera_capture"] = _bool_field(action, "camera_capture", True)
     return out
+
+
+def _bool_field(action: dict, key: str, default: bool) -> bool:
+    """``action[key]`` as a bool (missing or None: ``default``); ValueError naming the key."""
+    value = action.get(key)
+    if value is None:
+        return default
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"action[{key!r}]: expected a bool, got "
+                         f"{type(value).__name__} {value!r:.60}")
+    return bool(value)
 
 
 def _names(keys) -> list:

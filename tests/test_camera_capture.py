@@ -198,20 +198,11 @@ def test_sequencer_asks_for_frames_only_while_it_looks():
 def test_task6_agent_renders_only_while_it_looks():
     """Seed 0 from before the desk (as the closed-loop pick test): the camera renders at the
     initialization and at the samples in LOOK up to the detection, never after it."""
-    from pr2_drake.agents.search.agent import ObjectSearchAgent, Stage
-    from pr2_drake.episode import Episode, wire_system
-    from pr2_drake.scenario import Scenario
-    from pr2_drake.scene import StartPose
+    from tests._search_sim import desk_episode
+    from pr2_drake.agents.search.agent import Stage
 
-    held = {}
-
-    def wire(b, tb):
-        held["agent"] = ObjectSearchAgent(dict(tb.scene.priors))
-        return wire_system(held["agent"])(b, tb)
-
-    ep = Episode(Scenario(task=6, seed=0, seconds=3.0, start=StartPose(2.0, 2.0, math.pi / 2)),
-                 wire)
-    seq = held["agent"].GetSubsystemByName("sequencer")
+    ep, agent = desk_episode(3.0)
+    seq = agent.GetSubsystemByName("sequencer")
     renders = []
     sampler = ep.testbed.GetSubsystemByName("head_camera_sampler")
     render = sampler._render

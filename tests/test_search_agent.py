@@ -165,24 +165,14 @@ def test_agent_builds_with_a_bad_sentence_and_refuses_other_priors():
 def test_closed_loop_pick_on_seed_0_from_the_desk():
     """Seed 0: the book on the desk. The robot starts before the desk (start override), so
     the walk from the study's door is skipped; everything else is the full agent."""
-    from pr2_drake.agents.search.agent import ObjectSearchAgent
-    from pr2_drake.episode import Episode, wire_system
-    from pr2_drake.scenario import Scenario
-    from pr2_drake.scene import StartPose
+    from tests._search_sim import desk_episode
 
-    held = {}
-
-    def wire(b, tb):
-        held["agent"] = ObjectSearchAgent(dict(tb.scene.priors))
-        return wire_system(held["agent"])(b, tb)
-
-    ep = Episode(Scenario(task=6, seed=0, seconds=12.5, start=StartPose(2.0, 2.0, math.pi / 2)),
-                 wire)
+    ep, agent = desk_episode(12.5)
     assert ep.testbed.scene.data["target"] == "book"
     ep.initialize()
     status = ep.advance_to(12.5)
     items = [i.item for i in status.items]
-    seq = held["agent"].GetSubsystemByName("sequencer")
+    seq = agent.GetSubsystemByName("sequencer")
     assert "pick_target" in items, seq.log
     true = ep.testbed.scene.data["initial_poses"]["book"].translation()
     assert np.linalg.norm(seq.p_WO - true) < 0.05  # found by the camera, not told
