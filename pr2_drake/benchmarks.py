@@ -160,8 +160,9 @@ def _render_rate(task, quality: str, sizes, frames: int, budget: float):
     cam = CameraSettings(enabled=True, width=64, height=48, quality=quality)
     simulator, testbed = _standing_diagram(task, camera=cam)
     sensor = testbed.GetSubsystemByName("head_camera")
-    sg_context = testbed.scene_graph.GetMyContextFromRoot(simulator.get_context())
-    query = testbed.scene_graph.get_query_output_port().Eval(sg_context)
+    camera_sg = testbed.camera_scene_graph
+    query = camera_sg.get_query_output_port().Eval(
+        camera_sg.GetMyContextFromRoot(simulator.get_context()))
     parent, X_PB = sensor.default_parent_frame_id(), sensor.default_X_PB()
     rates = []
     for w, h in sizes:

@@ -123,6 +123,7 @@ class GraspSystem(LeafSystem):
         # Copies (np.array): pydrake's arrays may view the plant's memory and keep it alive.
         g_W = np.array(plant.gravity_field().gravity_vector())
         self._weight = {}  # graspable -> (p_BoBcm_B, -m g_W): the weight's cancelling force
+        self._lift_cache: dict[tuple[int, ...], list] = {}
         for i, g in enumerate(self._graspables):
             body = plant.get_body(g.body)
             if body.is_floating_base_body():
@@ -216,15 +217,24 @@ class GraspSystem(LeafSystem):
             output.set_value(PickState())
 
     def _calc_forces(self, context, output) -> None:
-        forces = self._attachment_forces(context)
-        for i in context.get_abstract_state(1).get_value():
-            p_BoBcm_B, f_W = self._weight[i]
-            lift = ExternallyAppliedSpatialForce()
-            lift.body_index = self._graspables[i].body
-            lift.p_BoBq_B = p_BoBcm_B
-            lift.F_Bq_W = SpatialForce(np.zeros(3), f_W)
-            forces.append(lift)
-        output.set_value(forces)
+        output.set_value(self._attachment_forces(context)
+                         + self._lifts(context.get_abstract_state(1).get_value()))
+
+    def _lifts(self, sleeping: tuple[int, ...]) -> list[ExternallyAppliedSpatialForce]:
+        """The forces cancelling the sleeping graspables' weights (made once per set: this
+        output is computed at every physics step)."""
+        lifts = self._lift_cache.get(sleeping)
+        if lifts is None:
+            lifts = []
+            for i in sleeping:
+                p_BoBcm_B, f_W = self._weight[i]
+                lift = ExternallyAppliedSpatialForce()
+                lift.body_index = self._graspables[i].body
+                lift.p_BoBq_B = p_BoBcm_B
+                lift.F_Bq_W = SpatialForce(np.zeros(3), f_W)
+                lifts.append(lift)
+            self._lift_cache = {sleeping: lifts}  # the last set only: sets change rarely
+        return lifts
 
     def _attachment_forces(self, context) -> list[ExternallyAppliedSpatialForce]:
         a = context.get_abstract_state(0).get_value()
@@ -240,13 +250,13 @@ class GraspSystem(LeafSystem):
         V_WO = self._plant.EvalBodySpatialVelocityInWorld(self._ctx, obj)
         p_WA = X_WO.multiply(a.p_OA)
         p_OA_W = p_WA - X_WO.translation()
-        v_WA = V_WO.translational() + np.cross(V_WO.rotational(), p_OA_W)
+        v_WA = V_WO.translational() + _cross(V_WO.rotational(), p_OA_W)
         gains = self._gains if g.mode != "weld" else self._weld_gains[a.graspable]
         # Force on the object at A, pulling A towards its held place Q on the hand (the hand
         # centre H in ball mode).
         p_HA = a.extra.get("p_HA", np.zeros(3))
         p_WQ = X_WH.multiply(p_HA)
-        v_WQ = V_WH.translational() + np.cross(V_WH.rotational(), p_WQ - X_WH.translation())
+        v_WQ = V_WH.translational() + _cross(V_WH.rotational(), p_WQ - X_WH.translation())
         f_A = gains.stiffness * (p_WQ - p_WA) + gains.damping * (v_WQ - v_WA)
         tau = np.zeros(3)
         if g.mode == "weld":
@@ -265,6 +275,14 @@ class GraspSystem(LeafSystem):
         on_hand.p_BoBq_B = p_HA
         on_hand.F_Bq_W = SpatialForce(-tau, -f_A)
         return [on_object, on_hand]
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b of two 3-vectors: np.cross's arithmetic (the same result to the bit) without its
+    generality, which costs ~15 us a call; this runs twice per physics step while holding."""
+    a0, a1, a2 = a.tolist()
+    b0, b1, b2 = b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
 def _stable_gains(gains: GraspGains, plant: MultibodyPlant, g: Graspable) -> GraspGains:

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Role
+from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Role, SceneGraph
 from pydrake.multibody.plant import (
     AddMultibodyPlant,
     MultibodyPlant,
@@ -31,7 +31,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import MatrixGain, Multiplexer
 
 from pr2_drake.actuation import ActuationAdapter
-from pr2_drake.camera import CameraSettings, add_head_camera
+from pr2_drake.camera import CameraSettings, add_camera_scene_graph, add_head_camera
 from pr2_drake.materials import visual_style
 from pr2_drake.grasp import GraspSystem
 from pr2_drake.ports import BODY_STATE_SIZE, N_JOINTS
@@ -133,6 +133,7 @@ class Testbed(Diagram):
         plant, scene_graph = AddMultibodyPlant(plant_config, builder)
         self.plant: MultibodyPlant = plant
         self.scene_graph = scene_graph
+        self.camera_scene_graph: SceneGraph | None = None  # with the camera: its own (camera.py)
         self.robot = add_kuavo(plant)
 
         if config.task is not None:
@@ -247,10 +248,13 @@ class Testbed(Diagram):
     def _add_camera(self, builder: DiagramBuilder) -> None:
         frame = self.plant.GetFrameByName("head_camera", self.robot)
         body_frame_id = self.plant.GetBodyFrameIdOrThrow(frame.body().index())
+        # The renderer gets a SceneGraph of its own, posed only when a frame renders.
+        self.camera_scene_graph, frame_ids = add_camera_scene_graph(
+            builder, self.plant, self.scene_graph, extra_frames=(body_frame_id,))
         sampler = add_head_camera(
             builder,
-            self.scene_graph,
-            body_frame_id,
+            self.camera_scene_graph,
+            frame_ids[body_frame_id],
             frame.GetFixedPoseInBodyFrame(),
             self.camera,
         )

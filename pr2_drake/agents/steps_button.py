@@ -29,12 +29,11 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from pydrake.common.value import AbstractValue
 from pydrake.common.yaml import yaml_load_typed
-from pydrake.systems.framework import BasicVector, Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import Diagram, DiagramBuilder
 
+from pr2_drake.agents.sequencer import TaskSequencer
 from pr2_drake.agents.walk_to_goal import yaw_from_quaternion
-from pr2_drake.lifetime import weak_calc
 from pr2_drake.paths import resolve_user_path
 from pr2_drake.ports import BODY_STATE_SIZE, JOINT_STATE_SIZE, P_WB, QUAT_WB
 
@@ -82,7 +81,7 @@ def _smooth(s: float) -> float:
     return s * s * (3.0 - 2.0 * s)
 
 
-class StepsButtonSequencer(LeafSystem):
+class StepsButtonSequencer(TaskSequencer):
     """Stages of the task (see the module docstring).
 
     Inputs: ``body_state``, ``joint_state``, ``walker_status``. Outputs: ``velocity_command``
@@ -106,14 +105,7 @@ class StepsButtonSequencer(LeafSystem):
         self._js = self.DeclareVectorInputPort("joint_state", JOINT_STATE_SIZE)
         self._status = self.DeclareVectorInputPort("walker_status", 6)
         self.DeclareDiscreteState(1)
-        after_update = {self.all_state_ticket()}
-        self.DeclareVectorOutputPort("velocity_command", 3, weak_calc(self._calc_cmd),
-                                     prerequisites_of_calc=after_update)
-        self.DeclareAbstractOutputPort("hand_targets", lambda: AbstractValue.Make([None, None]),
-                                       weak_calc(self._calc_targets),
-                                       prerequisites_of_calc=after_update)
-        self.DeclareVectorOutputPort("stage", 1, weak_calc(self._calc_stage),
-                                     prerequisites_of_calc=after_update)
+        self.declare_command_outputs(grasp=False)
         self.DeclarePeriodicUnrestrictedUpdateEvent(self.p.period, 0.0, self._update)
         self.reset()
 
@@ -182,15 +174,6 @@ class StepsButtonSequencer(LeafSystem):
         if self.stage == Stage.PRESS and t - self.t_stage >= p.hold_time:
             self._go(Stage.DONE, t)
         state.get_mutable_discrete_state().get_mutable_vector(0).SetAtIndex(0, float(self.stage))
-
-    def _calc_cmd(self, context, output: BasicVector) -> None:
-        output.SetFromVector(self.cmd)
-
-    def _calc_targets(self, context, output) -> None:
-        output.set_value([None if x is None else np.array(x) for x in self.targets])
-
-    def _calc_stage(self, context, output: BasicVector) -> None:
-        output.SetFromVector([float(self.stage)])
 
 
 class StepsButtonAgent(Diagram):

@@ -33,11 +33,11 @@ from typing import Any
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.common.yaml import yaml_load_typed
-from pydrake.systems.framework import BasicVector, Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import Diagram, DiagramBuilder
 
+from pr2_drake.agents.sequencer import TaskSequencer
 from pr2_drake.agents.walk_to_goal import GoalPlannerParams, goal_velocity, yaw_from_quaternion
 from pr2_drake.grasp import PickState
-from pr2_drake.lifetime import weak_calc
 from pr2_drake.paths import resolve_user_path
 from pr2_drake.ports import BODY_STATE_SIZE, JOINT_STATE_SIZE, P_WB, QUAT_WB
 
@@ -89,7 +89,7 @@ def _smooth(s: float) -> float:
     return s * s * (3.0 - 2.0 * s)
 
 
-class ValveSequencer(LeafSystem):
+class ValveSequencer(TaskSequencer):
     """Stages of the valve turn (see the module docstring).
 
     Inputs: ``body_state``, ``joint_state``, ``pick_state``, ``walker_status`` (the walking
@@ -121,20 +121,7 @@ class ValveSequencer(LeafSystem):
         # The sequencer's memory is in this object; the outputs change only at its updates
         # (which write the stage into this discrete state), not with the inputs.
         self._stage_state = self.DeclareDiscreteState(1)
-        after_update = {self.all_state_ticket()}
-        self.DeclareVectorOutputPort("velocity_command", 3, weak_calc(self._calc_cmd),
-                                     prerequisites_of_calc=after_update)
-        self.DeclareAbstractOutputPort("hand_targets", lambda: AbstractValue.Make([None, None]),
-                                       weak_calc(self._calc_targets),
-                                       prerequisites_of_calc=after_update)
-        self.DeclareAbstractOutputPort("pick", lambda: AbstractValue.Make(""),
-                                       weak_calc(self._calc_pick),
-                                       prerequisites_of_calc=after_update)
-        self.DeclareAbstractOutputPort("release", lambda: AbstractValue.Make(False),
-                                       weak_calc(self._calc_release),
-                                       prerequisites_of_calc=after_update)
-        self.DeclareVectorOutputPort("stage", 1, weak_calc(self._calc_stage),
-                                     prerequisites_of_calc=after_update)
+        self.declare_command_outputs(grasp=True)
         self.DeclarePeriodicUnrestrictedUpdateEvent(self.p.period, 0.0, self._update)
         self.reset()
 
@@ -311,21 +298,6 @@ class ValveSequencer(LeafSystem):
         return k >= len(self.path) - 1 + self.p.hold_time / T
 
     # ---- outputs -----------------------------------------------------------------------------
-    def _calc_cmd(self, context, output: BasicVector) -> None:
-        output.SetFromVector(self.cmd)
-
-    def _calc_targets(self, context, output) -> None:
-        output.set_value([None if x is None else np.array(x) for x in self.targets])
-
-    def _calc_pick(self, context, output) -> None:
-        output.set_value(self.pick)
-
-    def _calc_release(self, context, output) -> None:
-        output.set_value(bool(self.release))
-
-    def _calc_stage(self, context, output: BasicVector) -> None:
-        output.SetFromVector([float(self.stage)])
-
 
 class ValveAgent(Diagram):
     """Task 2 reference agent (see the module docstring).

@@ -65,7 +65,7 @@ from typing import Any, List, Optional
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.common.yaml import yaml_load_typed
-from pydrake.systems.framework import BasicVector, Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from pr2_drake.agents.search.instruction import Instruction, InstructionError
 from pr2_drake.agents.search.navigation import (
@@ -75,6 +75,7 @@ from pr2_drake.agents.search.navigation import (
     follow_velocity,
     plan_path,
 )
+from pr2_drake.agents.sequencer import TaskSequencer
 from pr2_drake.agents.walk_to_goal import yaw_from_quaternion
 from pr2_drake.camera import RgbdFrame
 from pr2_drake.grasp import PickState
@@ -228,7 +229,7 @@ def _wrap(a: float) -> float:
     return math.atan2(math.sin(a), math.cos(a))
 
 
-class ObjectSearchSequencer(LeafSystem):
+class ObjectSearchSequencer(TaskSequencer):
     """Stages of the search and transport (see the module docstring).
 
     Inputs: ``body_state``, ``joint_state``, ``pick_state``, ``rgbd`` (RgbdFrame),
@@ -278,20 +279,7 @@ class ObjectSearchSequencer(LeafSystem):
         self._rgbd = self.DeclareAbstractInputPort("rgbd", AbstractValue.Make(blank))
         self._status = self.DeclareVectorInputPort("walker_status", 6)
         self.DeclareDiscreteState(1)
-        after_update = {self.all_state_ticket()}
-        self.DeclareVectorOutputPort("velocity_command", 3, weak_calc(self._calc_cmd),
-                                     prerequisites_of_calc=after_update)
-        self.DeclareAbstractOutputPort("hand_targets", lambda: AbstractValue.Make([None, None]),
-                                       weak_calc(self._calc_targets),
-                                       prerequisites_of_calc=after_update)
-        self.DeclareAbstractOutputPort("pick", lambda: AbstractValue.Make(""),
-                                       weak_calc(self._calc_pick),
-                                       prerequisites_of_calc=after_update)
-        self.DeclareAbstractOutputPort("release", lambda: AbstractValue.Make(False),
-                                       weak_calc(self._calc_release),
-                                       prerequisites_of_calc=after_update)
-        self.DeclareVectorOutputPort("stage", 1, weak_calc(self._calc_stage),
-                                     prerequisites_of_calc=after_update)
+        after_update = self.declare_command_outputs(grasp=True)
         self.DeclareAbstractOutputPort("camera_capture", lambda: AbstractValue.Make(False),
                                        weak_calc(self._calc_capture),
                                        prerequisites_of_calc=after_update)
@@ -748,9 +736,6 @@ class ObjectSearchSequencer(LeafSystem):
         return float(np.linalg.norm(p_WS - self.p_WO))
 
     # ---- outputs -----------------------------------------------------------------------------
-    def _calc_cmd(self, context, output: BasicVector) -> None:
-        output.SetFromVector(self.cmd)
-
     def _calc_targets(self, context, output) -> None:
         targets = [None if x is None else np.array(x) for x in self.targets]
         side = self.hand
@@ -758,15 +743,6 @@ class ObjectSearchSequencer(LeafSystem):
                 and self.stage in (Stage.PLACE, Stage.RELEASE)):
             targets[side] = np.r_[targets[side], self.up_H]  # set down upright
         output.set_value(targets)
-
-    def _calc_pick(self, context, output) -> None:
-        output.set_value(self.pick)
-
-    def _calc_release(self, context, output) -> None:
-        output.set_value(bool(self.release))
-
-    def _calc_stage(self, context, output: BasicVector) -> None:
-        output.SetFromVector([float(self.stage)])
 
     def _calc_capture(self, context, output) -> None:
         # Frames are used only in LOOK (``_detect``, after ``look_settle`` there): the camera
