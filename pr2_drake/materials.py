@@ -96,8 +96,18 @@ _FACES = [(0, 1, 1, 2), (0, -1, 1, 2), (1, 1, 0, 2), (1, -1, 0, 2), (2, 1, 0, 1)
 
 
 def box_arrays(size, X: RigidTransform, tile: float):
-    """Vertices (24x3, in the frame of X), normals, texture coordinates [m / tile] and
-    triangle indices of a box of full ``size`` [m] posed by ``X``."""
+    """Vertices (24x3, in the frame of X, glTF's y-up axes), normals, texture coordinates
+    [m / tile] and triangle indices of a box of full ``size`` [m] posed by ``X``."""
+    pos, nrm, uv, idx = _box_faces(size, X, tile)
+    # glTF is y-up; Drake turns a glTF file's (x, y, z) into its own (x, -z, y).
+    to_gltf = np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]], float)
+    return (np.asarray(pos, np.float32) @ to_gltf.T.astype(np.float32),
+            np.asarray(nrm, np.float32) @ to_gltf.T.astype(np.float32),
+            np.asarray(uv, np.float32), np.asarray(idx, np.uint32))
+
+
+def _box_faces(size, X: RigidTransform, tile: float):
+    """As :func:`box_arrays`, in the frame of X itself (lists)."""
     h = np.asarray(size, float) / 2
     R, p = X.rotation().matrix(), X.translation()
     pos, nrm, uv, idx = [], [], [], []
@@ -117,11 +127,28 @@ def box_arrays(size, X: RigidTransform, tile: float):
         if axis == 1:  # (x, z) basis has the opposite handedness
             quad = [0, 2, 1, 0, 3, 2] if sign > 0 else [0, 1, 2, 0, 2, 3]
         idx += [base + q for q in quad]
-    # glTF is y-up; Drake turns a glTF file's (x, y, z) into its own (x, -z, y).
-    to_gltf = np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]], float)
-    return (np.asarray(pos, np.float32) @ to_gltf.T.astype(np.float32),
-            np.asarray(nrm, np.float32) @ to_gltf.T.astype(np.float32),
-            np.asarray(uv, np.float32), np.asarray(idx, np.uint32))
+    return pos, nrm, uv, idx
+
+
+def write_boxes_obj(boxes: Sequence[tuple[RigidTransform, Sequence[float]]]) -> Path:
+    """One OBJ file (positions, flat normals, triangles) holding every (pose, size) box, in
+    the frame the poses are given in: one draw call for the renderer instead of one a box."""
+    pos, nrm, tri = [], [], []
+    for k, (X, size) in enumerate(boxes):
+        p, n, _, idx = _box_faces(size, X, 1.0)
+        pos += p
+        nrm += n
+        tri.append(np.asarray(idx).reshape(-1, 3) + 24 * k + 1)  # OBJ counts from 1
+    lines = [f"v {a:.6f} {b:.6f} {c:.6f}" for a, b, c in pos]
+    lines += [f"vn {a:.6f} {b:.6f} {c:.6f}" for a, b, c in nrm]
+    lines += [f"f {a}//{a} {b}//{b} {c}//{c}" for a, b, c in np.concatenate(tri).tolist()]
+    text = "\n".join(lines) + "\n"
+    path = _cache_dir() / f"boxes_{hashlib.sha1(text.encode()).hexdigest()[:20]}.obj"
+    if not path.is_file():
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(text)
+        tmp.replace(path)  # atomic: parallel episodes may write the same file
+    return path
 
 
 def write_boxes_gltf(boxes: Sequence[tuple[RigidTransform, Sequence[float]]], rgba,
@@ -178,14 +205,19 @@ def write_boxes_gltf(boxes: Sequence[tuple[RigidTransform, Sequence[float]]], rg
 def add_textured_boxes(plant: MultibodyPlant, name: str,
                        boxes: Sequence[tuple[RigidTransform, Sequence[float]]], rgba,
                        material_name: str, body=None) -> None:
-    """Register the boxes (poses in ``body``, default the world) as one visual-only glTF."""
+    """Register the boxes (poses in ``body``, default the world) as one visual-only mesh: a
+    textured glTF (``"pbr"`` style), or an OBJ in the flat colour (``"phong"``; one box stays
+    a ``Box``)."""
     body = plant.world_body() if body is None else body
     mat = material(material_name)
     if _STYLE.get() == "phong":
         color = np.asarray([float(c) for c in rgba] + ([1.0] if len(rgba) == 3 else []))
-        for k, (X, size) in enumerate(boxes):
-            plant.RegisterVisualGeometry(body, X, Box(*[float(v) for v in size]),
-                                         name if len(boxes) == 1 else f"{name}_{k}", color)
+        if len(boxes) == 1:
+            X, size = boxes[0]
+            plant.RegisterVisualGeometry(body, X, Box(*[float(v) for v in size]), name, color)
+        else:  # one mesh: VTK draws each geometry separately (488 stones on the rocky road)
+            plant.RegisterVisualGeometry(body, RigidTransform(), Mesh(str(write_boxes_obj(boxes))),
+                                         name, color)
         return
     path = write_boxes_gltf(boxes, rgba, mat)
     # No Drake material on the instance: the glTF's own PBR material is what renders.

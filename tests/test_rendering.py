@@ -11,13 +11,14 @@ from pydrake.geometry import (
     RenderCameraCore,
 )
 from pydrake.geometry import Mesh
-from pydrake.math import RigidTransform
+from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.sensors import CameraInfo
 
 from pr2_drake.camera import PRESETS, CameraSettings, renderer_params
-from pr2_drake.materials import Material, add_textured_box, materials, write_boxes_gltf
+from pr2_drake.materials import (Material, add_textured_box, materials, write_boxes_gltf,
+                                 write_boxes_obj)
 from pr2_drake.scenario import Scenario
 from pr2_drake.testbed import TestbedConfig
 from pr2_drake.viz import look_at, render_task_views
@@ -113,3 +114,23 @@ def test_head_camera_video_has_a_frame_per_camera_sample(tmp_path):
         assert len(frames) == 5
         assert all(f.shape == (48, width, 3) for f in frames)
         assert float(np.std(frames[-1])) > 5.0  # a picture, not a blank frame
+
+
+def test_a_box_group_is_one_obj_mesh_in_the_low_preset():
+    """``write_boxes_obj``: the boxes' exact volume and extent in one file; the low preset
+    draws the rocky road's stones through it (one geometry, not one a stone)."""
+    import trimesh
+    from pydrake.geometry import Role
+
+    from pr2_drake.testbed import Testbed
+
+    boxes = [(RigidTransform([0.0, 0.0, 0.0]), (1.0, 1.0, 1.0)),
+             (RigidTransform(RotationMatrix.MakeZRotation(0.3), [3.0, 0.0, 0.5]), (0.5, 0.2, 1.0))]
+    mesh = trimesh.load(write_boxes_obj(boxes), force="mesh")
+    assert mesh.volume == pytest.approx(1.0 + 0.1, rel=1e-5)  # outward faces: positive volume
+    assert mesh.bounds[0] == pytest.approx([-0.5, -0.5, -0.5], abs=1e-6)
+    assert mesh.bounds[1][2] == pytest.approx(1.0, abs=1e-6)
+    camera = CameraSettings(enabled=True, width=32, height=24, quality="low")
+    tb = Testbed(TestbedConfig(task=1, seed=0, camera=camera))
+    perception = tb.camera_scene_graph.model_inspector().NumGeometriesWithRole(Role.kPerception)
+    assert perception < 60  # 515 when each stone was a Box
