@@ -32,14 +32,14 @@ from __future__ import annotations
 import json
 import mmap
 import os
-import struct
 import sys
 import time
 from typing import Any
 
 import numpy as np
 
-_HEADER = struct.Struct(">I")
+from pr2_drake.framing import LENGTH, frame
+
 # Testbed outputs a sandboxed System agent may read (copies of them cross the boundary).
 ALLOWED_INPUTS = ("joint_state", "body_state", "pick_state", "task_feedback", "instruction",
                   "rgbd", "score")
@@ -168,7 +168,7 @@ class Child:
         header = self._read(4)
         if header is None:
             return None
-        data = self._read(_HEADER.unpack(header)[0])
+        data = self._read(LENGTH.unpack(header)[0])
         return None if data is None else self.unpack(pickle.loads(data))
 
     def _read(self, n: int) -> bytes | None:
@@ -185,8 +185,7 @@ class Child:
         arrays it refers to (``{"__f8__": [offset, count]}``) as raw bytes."""
         blob: list[bytes] = []
         head = json.dumps(_binary(reply, blob, [0])).encode()
-        body = _HEADER.pack(len(head)) + head + b"".join(blob)
-        view = memoryview(_HEADER.pack(len(body)) + body)
+        view = memoryview(frame(frame(head) + b"".join(blob)))
         while view:
             view = view[os.write(self.fd_out, view):]
 

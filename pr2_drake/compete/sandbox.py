@@ -34,9 +34,10 @@ from typing import Any
 
 import numpy as np
 
+from pr2_drake.framing import LENGTH, frame
+
 MAX_REPLY_BYTES = 1 << 20  # a longer answer from the agent is garbage [bytes]
 CAMERA_BYTES = 64 << 20  # shared-memory block for camera frames [bytes]
-_HEADER = struct.Struct(">I")
 _PROJECT_ROOT = Path(__file__).resolve().parents[2]
 _COUNTER = itertools.count()
 NOBODY = 65534  # the uid an agent runs as when the harness is root and bubblewrap is missing
@@ -328,11 +329,11 @@ class AgentProcess:
         budget = _Budget(timeout, wall_cap, self._cpu_clock() if wall_cap else None, t0)
         data = pickle.dumps(self._pack_camera(message), protocol=pickle.HIGHEST_PROTOCOL)
         try:
-            _write_all(self._w, _HEADER.pack(len(data)) + data)
+            _write_all(self._w, frame(data))
         except (BrokenPipeError, OSError):
             raise self._death() from None
         header = self._read_exact(4, budget)
-        (n,) = _HEADER.unpack(header)
+        (n,) = LENGTH.unpack(header)
         if n > MAX_REPLY_BYTES:
             raise AgentFault("agent_error", f"garbage on the agent channel: a {n}-byte answer")
         payload = self._read_exact(n, budget)
@@ -504,7 +505,7 @@ def _process_cpu_clock(pid: int) -> int:
 def decode_reply(payload: bytes) -> Any:
     """An answer of the child (see ``Child.send``): JSON header, float64 arrays after it.
     Raises ValueError (or struct.error) on anything else; nothing in it is executed."""
-    (n,) = _HEADER.unpack_from(payload, 0)
+    (n,) = LENGTH.unpack_from(payload, 0)
     if n > len(payload) - 4:
         raise ValueError("header longer than the answer")
     head = json.loads(payload[4:4 + n].decode("utf-8"))

@@ -52,7 +52,6 @@ from __future__ import annotations
 import json
 import math
 import socket
-import struct
 import sys
 import threading
 from dataclasses import dataclass
@@ -60,9 +59,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from pr2_drake.framing import LENGTH, frame
 from pr2_drake.ports import N_ARMS, N_LEGS, real_vector
 
-HEADER = struct.Struct(">I")
 MAX_REQUEST_BYTES = 1 << 20
 #: Required request keys and their sizes.
 REQUEST_KEYS: dict[str, int] = {
@@ -236,7 +235,7 @@ def parse_change_state(value: Any) -> int:
 def encode(message: Mapping[str, Any]) -> bytes:
     """A framed message: 4-byte big-endian length + UTF-8 JSON."""
     data = json.dumps(message, separators=(",", ":"), allow_nan=False).encode("utf-8")
-    return HEADER.pack(len(data)) + data
+    return frame(data)
 
 
 def _recv_exact(sock: socket.socket, n: int, stop: threading.Event | None = None) -> bytes | None:
@@ -341,10 +340,10 @@ class ControllerServer:
         self._say(f"controller-server: connection {self.connections} from {peer[0]}:{peer[1]}")
         try:
             while not self._stop.is_set():
-                header = _recv_exact(conn, HEADER.size, self._stop)
+                header = _recv_exact(conn, LENGTH.size, self._stop)
                 if header is None:
                     break
-                (n,) = HEADER.unpack(header)
+                (n,) = LENGTH.unpack(header)
                 if n > MAX_REQUEST_BYTES:
                     self._reply(conn, {"error": f"request: frame length {n} bytes exceeds "
                                                 f"{MAX_REQUEST_BYTES}; closing the connection"})
@@ -433,12 +432,12 @@ class ControllerClient:
         """Send one message (a dict, or an already encoded JSON payload) and return the reply
         as it came (errors included)."""
         payload = message if isinstance(message, bytes) else None
-        data = HEADER.pack(len(payload)) + payload if payload is not None else encode(message)
+        data = frame(payload) if payload is not None else encode(message)
         self.sock.sendall(data)
-        header = _recv_exact(self.sock, HEADER.size)
+        header = _recv_exact(self.sock, LENGTH.size)
         if header is None:
             raise ConnectionError("the controller server closed the connection")
-        (n,) = HEADER.unpack(header)
+        (n,) = LENGTH.unpack(header)
         body = _recv_exact(self.sock, n) if n else b""
         if body is None:
             raise ConnectionError("the controller server closed the connection")
