@@ -3,7 +3,8 @@
 The renderer lives in a SceneGraph of its own (:func:`add_camera_scene_graph`): a copy of the
 perception geometry whose frame poses are computed only when a frame is rendered. In the
 plant's SceneGraph a renderer would have every geometry pose pushed into VTK at every physics
-step (measured 0.8 CPU s per simulated s on Task 6 with no frame rendered at all).
+step (0.25-0.35 CPU s per simulated s measured on Task 6, standing, with no frame rendered;
+benchmarks/README.md).
 """
 
 
@@ -15,18 +16,18 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.geometry import (
     ClippingRange,
-    FramePoseVector,
-    GeometryFrame,
-    GeometryInstance,
-    Role,
     ColorRenderCamera,
     DepthRange,
     DepthRenderCamera,
+    FramePoseVector,
+    GeometryFrame,
+    GeometryInstance,
     LightParameter,
     MakeRenderEngineVtk,
     RenderCameraCore,
     RenderEngineVtkParams,
     Rgba,
+    Role,
     SceneGraph,
 )
 from pydrake.math import RigidTransform

@@ -279,7 +279,7 @@ class GraspSystem(LeafSystem):
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a x b of two 3-vectors: np.cross's arithmetic (the same result to the bit) without its
-    generality, which costs ~15 us a call; this runs twice per physics step while holding."""
+    generality, which costs ~25 us a call; this runs twice per physics step while holding."""
     a0, a1, a2 = a.tolist()
     b0, b1, b2 = b.tolist()
     return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
