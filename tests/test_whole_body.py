@@ -12,7 +12,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pr2_drake.bench.walking import WalkingSim
 from pr2_drake.controllers.footsteps import FixedFootstepPlanner, FootstepPlanner
 from pr2_drake.controllers.plan import WholeBodyPlan
-from pr2_drake.controllers.tasks import PostureTask, TaskCost
+from pr2_drake.controllers.tasks import HandUprightTask, PostureTask, TaskCost
 from pr2_drake.controllers.walking_params import WalkingParams
 from pr2_drake.controllers.wb_model import WholeBodyModel
 from pr2_drake.controllers.wbqp import WholeBodyQp
@@ -265,3 +265,10 @@ def test_own_footstep_planner_is_followed():
         p = m.sole_pose(side).translation()
         assert np.hypot(p[0] - f[0], p[1] - f[1]) < 0.02, (side, p, f)
     assert int(sim.status()[3]) == 0  # standing again
+
+
+@pytest.mark.parametrize("bad", [0.0, -0.2, 1.5, float("nan")])
+def test_hand_upright_max_error_out_of_range_names_the_parameter(bad):
+    gains = WalkingParams().arms.hand_upright
+    with pytest.raises(ValueError, match="arms.hand_upright_max_error"):
+        HandUprightTask(0, gains, bad)

@@ -246,6 +246,9 @@ class HandUprightTask(Task):
     def __init__(self, side: int, gains: TaskGains, max_error: float = 0.2):
         self.side = side
         self.gains = gains
+        if not 0.0 < max_error <= 1.0:  # a sine; at 1 nothing is saturated
+            raise ValueError(f"arms.hand_upright_max_error must be in (0, 1] (the sine of a "
+                             f"tilt), got {max_error!r}")
         self.max_error = max_error  # [rad] (sine of the tilt) the error is saturated at
         self.w = np.full(2, gains.weight)
 
