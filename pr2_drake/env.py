@@ -147,7 +147,7 @@ class Env:
 
     @property
     def control_dt(self) -> float:
-        return float(self._scenario.control_dt or self._scenario.plant.time_step)
+        return float(self._scenario.control_dt or self.testbed.config.time_step)
 
     @property
     def priors(self) -> dict[str, Any]:

@@ -40,6 +40,7 @@ from pr2_drake.robot.params import RobotParams, load_robot_params
 from pr2_drake.scene import Scene, StartPose, build_flat_scene
 
 CONTACT_APPROXIMATIONS = ("lagged", "sap", "similar", "tamsi")
+DEFAULT_TIME_STEP = 0.001  # [s] physics step of a task whose YAML gives none, and of flat ground
 CONTACT_MODELS = ("point", "hydroelastic_with_fallback", "hydroelastic")
 
 
@@ -50,7 +51,10 @@ class TestbedConfig:
     Attributes:
         task: task id (1..6) or name; None for flat ground with no referee.
         seed: episode seed; every random choice (start pose, object placement) flows from it.
-        time_step: physics step [s] of the discrete plant.
+        time_step: physics step [s] of the discrete plant; None = the task's (its YAML's
+            ``time_step``: 2 ms for task 6, where nothing needs finer steps and nine free
+            objects make each step dear), else :data:`DEFAULT_TIME_STEP`. Resolved on
+            construction, so it is a number from then on.
         contact_approximation: SAP variant of MultibodyPlant ("lagged" is the cheapest).
         contact_model: "point" (default; rigid terrain needs no more) or
             "hydroelastic_with_fallback" (costlier; only compliant geometry benefits).
@@ -68,7 +72,7 @@ class TestbedConfig:
 
     task: int | str | None = None
     seed: int = 0
-    time_step: float = 0.001
+    time_step: float | None = None
     contact_approximation: str = "lagged"
     contact_model: str = "point"
     camera: CameraSettings | None = None
@@ -77,6 +81,10 @@ class TestbedConfig:
     leg_gains: tuple[float, float] = (400.0, 8.0)
     grasp_period: float = 0.01
     scene_builder: Callable[[MultibodyPlant, np.random.Generator], Scene] | None = None
+
+    def __post_init__(self) -> None:
+        if self.time_step is None:
+            self.time_step = task_time_step(self.task)
 
     def validate(self) -> None:
         if not (0 < self.time_step <= 0.02):
@@ -96,6 +104,16 @@ class TestbedConfig:
                 raise ValueError(f"{name} must be finite and non-negative, got {(k, d)}")
         if self.camera is not None:
             self.camera.validate()
+
+
+def task_time_step(task: int | str | None) -> float:
+    """The physics step [s] a task runs at unless told otherwise (flat ground: the default)."""
+    if task is None:
+        return DEFAULT_TIME_STEP
+    from pr2_drake.tasks import get_task
+
+    step = get_task(task).spec.time_step
+    return DEFAULT_TIME_STEP if step is None else float(step)
 
 
 class Testbed(Diagram):

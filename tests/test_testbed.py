@@ -157,6 +157,23 @@ def test_bad_config_is_rejected():
         build_testbed(TestbedConfig(camera=CameraSettings(enabled=True, quality="ultra")))
 
 
+def test_physics_step_is_the_tasks_unless_the_scenario_sets_one(tmp_path):
+    from pr2_drake.scenario import load_scenario
+    from pr2_drake.tasks.base import TaskSpec
+
+    assert TestbedConfig().time_step == 0.001  # flat ground
+    assert TestbedConfig(task=1).time_step == 0.001
+    assert TestbedConfig(task="object_search").time_step == 0.002  # tasks/6_*.yaml
+    assert load_scenario(None, ["task=6"]).testbed_config().time_step == 0.002
+    assert load_scenario(None, ["task=6", "plant.time_step=0.001"]).testbed_config(
+    ).time_step == 0.001
+    bad = tmp_path / "9_bad.yaml"
+    bad.write_text("id: 9\nname: bad\ntitle: Bad\ntime_limit: 5.0\ntime_step: 0.5\n"
+                   "rubric: []\nstart_region: {center: [0, 0], size: [1, 1]}\n")
+    with pytest.raises(ValueError, match=r"9_bad.yaml: time_step must be in \(0, 0.02\]"):
+        TaskSpec.load(bad)
+
+
 def test_camera_images_and_rate():
     cam = CameraSettings(enabled=True, width=64, height=48, fps=10.0, quality="low")
     simulator, testbed, ctx = standing_simulator(Scenario(camera=cam, seconds=math.inf))

@@ -77,6 +77,8 @@ class TaskSpec:
         arena: {"min": [x, y], "max": [x, y]}: leaving it ends the episode ("left_region").
         fall_height: the robot has fallen when its base is less than this above the ground.
         scene: task-specific scene parameters; priors: what the agent is told in advance.
+        time_step: physics step [s] of this task's episodes unless a scenario sets one;
+            None = :data:`pr2_drake.testbed.DEFAULT_TIME_STEP`.
     """
 
     id: int
@@ -94,6 +96,7 @@ class TaskSpec:
     feedback: list[str] = field(default_factory=list)
     priors: dict[str, Any] = field(default_factory=dict)
     scene: dict[str, Any] = field(default_factory=dict)
+    time_step: float | None = None
 
     @staticmethod
     def load(path) -> "TaskSpec":
@@ -108,6 +111,10 @@ class TaskSpec:
             spec = TaskSpec(rubric=rubric, **raw)
         except TypeError as e:
             raise ValueError(f"task file {path}: {e}") from None
+        if spec.time_step is not None and not (
+                isinstance(spec.time_step, (int, float)) and 0 < spec.time_step <= 0.02):
+            raise ValueError(f"task file {path}: time_step must be in (0, 0.02] s, got "
+                             f"{spec.time_step!r}")
         if spec.max_score is None:
             spec.max_score = float(sum(r.points for r in rubric if r.points > 0))
         return spec

@@ -2,8 +2,8 @@
 the coffee table.
 
 :class:`ObjectSearchAgent` is a Diagram of a sequencer (:class:`ObjectSearchSequencer`) and the
-walking controller with the arms in the whole-body QP (``WalkingController(arms="effort")``),
-built like :class:`pr2_drake.agents.valve.ValveAgent`. The sequencer is made of the search
+walking controller with the arms in the whole-body QP (``WalkingController(arms="effort")``,
+its QP at 125 Hz: controllers/walking_search.yaml), built like :class:`pr2_drake.agents.valve.ValveAgent`. The sequencer is made of the search
 parts, each replaceable on its own (constructor arguments of :class:`ObjectSearchSequencer`):
 
 - ``parser`` (:class:`~.instruction.InstructionParser`, anything with ``parse(sentence)``):
@@ -84,6 +84,7 @@ from pr2_drake.paths import resolve_user_path
 from pr2_drake.ports import BODY_STATE_SIZE, JOINT_STATE_SIZE, P_WB, QUAT_WB
 
 DEFAULT_PARAMS = "controllers/search_agent.yaml"
+DEFAULT_WALKING = "controllers/walking_search.yaml"  # overrides of controllers/walking.yaml
 HANDS = ("left_hand", "right_hand")
 
 
@@ -121,6 +122,7 @@ class SearchAgentParams:
     hand_clearance: float = 0.05
     reach: float = 0.44
     lift_forward: float = 0.05
+    edge_clearance: float = 0.07
     reach_time: float = 1.5
     pick_timeout: float = 1.2
     pick_tries: int = 4
@@ -461,6 +463,20 @@ class ObjectSearchSequencer(TaskSequencer):
                     best, best_key = g, key
         return best
 
+    def _out_from_under(self, p_WH, heading, tab: Table):
+        """Where the hand goes first when it hangs below ``tab``'s top within
+        ``edge_clearance`` of its footprint: straight back along ``heading`` (unit, x-y) at its
+        height until it is that far outside (at most 0.2 m back); None when it hangs clear."""
+        margin = self.p.edge_clearance
+        if p_WH[2] >= tab.height or not tab.contains(p_WH, margin):
+            return None
+        back = np.array(p_WH, float)
+        for _ in range(10):
+            back[:2] -= 0.02 * heading
+            if not tab.contains(back, margin):
+                break
+        return back
+
     def _start_hand_path(self, points: list, t: float) -> None:
         start = self.model.hand_point(self.hand)[0].copy()
         self.hand_path = [start] + [np.asarray(x, float) for x in points]
@@ -524,7 +540,13 @@ class ObjectSearchSequencer(TaskSequencer):
                                grasp[2] + p.pre_height])
                 up[:2] += (p_WH[:2] - p_WB[:2]) - ((p_WH[:2] - p_WB[:2]) @ [c, s_]) * np.array(
                     [c, s_])  # keep the hand's sideways offset
-                self._start_hand_path([up, grasp + [0.0, 0.0, p.pre_height], grasp], t)
+                path = [up, grasp + [0.0, 0.0, p.pre_height], grasp]
+                back = self._out_from_under(p_WH, np.array([c, s_]), self.tables[self.place])
+                if back is not None:  # the body stopped short: the hand hangs under the top
+                    path.insert(0, back)
+                    if (up[:2] - p_WB[:2]) @ [c, s_] > (back[:2] - p_WB[:2]) @ [c, s_]:
+                        up[:2] = back[:2]
+                self._start_hand_path(path, t)
                 self.pick_tries = 0
                 self._go(Stage.REACH, t)
         if self.stage == Stage.REACH:
@@ -763,12 +785,14 @@ class ObjectSearchAgent(Diagram):
         params: sequencer YAML (default controllers/search_agent.yaml).
         parser: replaces the rule-based :class:`InstructionParser` (``parse(sentence)``).
         detector: replaces the :class:`ObjectDetector` (``find(rgb, depth, X_WC, target)``).
+        walking_params: overrides of controllers/walking.yaml for the walking controller
+            (default controllers/walking_search.yaml: the QP at 125 Hz).
     """
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
     def __init__(self, priors: dict[str, Any], params: str | None = None, parser=None,
-                 detector=None):
+                 detector=None, walking_params: str | None = None):
         super().__init__()
         from pr2_drake.agents.search.instruction import InstructionParser
         from pr2_drake.agents.search.perception import (
@@ -778,6 +802,7 @@ class ObjectSearchAgent(Diagram):
             object_models_from_priors,
         )
         from pr2_drake.controllers.walking import WalkingController
+        from pr2_drake.controllers.walking_params import WalkingParams
         from pr2_drake.tasks import get_task
 
         if "object_models" not in priors:
@@ -804,7 +829,8 @@ class ObjectSearchAgent(Diagram):
                                     (K.height, K.width))
         builder = DiagramBuilder()
         builder.AddNamedSystem("sequencer", seq)
-        walker = builder.AddNamedSystem("walker", WalkingController(arms="effort"))
+        wparams = WalkingParams.load().with_overrides(walking_params or DEFAULT_WALKING)
+        walker = builder.AddNamedSystem("walker", WalkingController(wparams, arms="effort"))
         js = builder.ExportInput(walker.GetInputPort("joint_state"), "joint_state")
         bs = builder.ExportInput(walker.GetInputPort("body_state"), "body_state")
         ps = builder.ExportInput(walker.GetInputPort("pick_state"), "pick_state")
