@@ -11,6 +11,7 @@ spatial forces, so the object's weight and the valve's resistance act on the rob
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -73,6 +74,12 @@ class _Attachment:
     R_HO: np.ndarray  # object orientation relative to the hand at pick time
     pick_time: float = 0.0
     extra: dict = field(default_factory=dict)
+
+    def __deepcopy__(self, memo) -> "_Attachment":
+        # Drake copies abstract state at every update of this system (100 Hz): a direct copy
+        # costs a fraction of the generic deepcopy. Fields are str, int, float and arrays.
+        return _Attachment(self.hand, self.graspable, self.p_OA.copy(), self.R_HO.copy(),
+                           self.pick_time, {k: np.array(v) for k, v in self.extra.items()})
 
 
 class GraspSystem(LeafSystem):
@@ -237,35 +244,38 @@ class GraspSystem(LeafSystem):
         return lifts
 
     def _attachment_forces(self, context) -> list[ExternallyAppliedSpatialForce]:
+        # Evaluated at every physics step while a hand holds something: plain 3-vector
+        # arithmetic on the poses' matrices (no RigidTransform products, ~2x faster).
         a = context.get_abstract_state(0).get_value()
         if not isinstance(a, _Attachment):
             return []
         self._set_state(context)
+        plant, ctx = self._plant, self._ctx
         g = self._graspables[a.graspable]
-        hand = self._plant.get_body(self._hands[a.hand])
-        obj = self._plant.get_body(g.body)
-        X_WH = self._pose(hand)
-        X_WO = self._pose(obj)
-        V_WH = self._plant.EvalBodySpatialVelocityInWorld(self._ctx, hand)
-        V_WO = self._plant.EvalBodySpatialVelocityInWorld(self._ctx, obj)
-        p_WA = X_WO.multiply(a.p_OA)
-        p_OA_W = p_WA - X_WO.translation()
-        v_WA = V_WO.translational() + _cross(V_WO.rotational(), p_OA_W)
+        hand = plant.get_body(self._hands[a.hand])
+        obj = plant.get_body(g.body)
+        X_WH = plant.EvalBodyPoseInWorld(ctx, hand)
+        X_WO = plant.EvalBodyPoseInWorld(ctx, obj)
+        V_WH = plant.EvalBodySpatialVelocityInWorld(ctx, hand)
+        V_WO = plant.EvalBodySpatialVelocityInWorld(ctx, obj)
+        R_WH, R_WO = X_WH.rotation().matrix(), X_WO.rotation().matrix()
+        w_WH, w_WO = V_WH.rotational(), V_WO.rotational()
+        p_OA_W = R_WO @ a.p_OA
+        p_WA = X_WO.translation() + p_OA_W
+        v_WA = V_WO.translational() + _cross(w_WO, p_OA_W)
         gains = self._gains if g.mode != "weld" else self._weld_gains[a.graspable]
         # Force on the object at A, pulling A towards its held place Q on the hand (the hand
         # centre H in ball mode).
-        p_HA = a.extra.get("p_HA", np.zeros(3))
-        p_WQ = X_WH.multiply(p_HA)
-        v_WQ = V_WH.translational() + _cross(V_WH.rotational(), p_WQ - X_WH.translation())
+        p_HA = a.extra.get("p_HA", _ZERO3)
+        p_HQ_W = R_WH @ p_HA
+        p_WQ = X_WH.translation() + p_HQ_W
+        v_WQ = V_WH.translational() + _cross(w_WH, p_HQ_W)
         f_A = gains.stiffness * (p_WQ - p_WA) + gains.damping * (v_WQ - v_WA)
-        tau = np.zeros(3)
+        tau = _ZERO3
         if g.mode == "weld":
-            R_WO_desired = X_WH.rotation().matrix() @ a.R_HO
-            R_err = RotationMatrix(R_WO_desired @ X_WO.rotation().matrix().T)
-            aa = R_err.ToAngleAxis()
-            tau = gains.rot_stiffness * aa.angle() * aa.axis() + gains.rot_damping * (
-                V_WH.rotational() - V_WO.rotational()
-            )
+            # Rotation vector of R_err = R_WO_desired R_WO^T (desired: as at the pick).
+            tau = gains.rot_stiffness * _rotation_vector(R_WH @ a.R_HO @ R_WO.T) + (
+                gains.rot_damping * (w_WH - w_WO))
         on_object = ExternallyAppliedSpatialForce()
         on_object.body_index = g.body
         on_object.p_BoBq_B = a.p_OA
@@ -275,6 +285,23 @@ class GraspSystem(LeafSystem):
         on_hand.p_BoBq_B = p_HA
         on_hand.F_Bq_W = SpatialForce(-tau, -f_A)
         return [on_object, on_hand]
+
+
+_ZERO3 = np.zeros(3)
+_ZERO3.flags.writeable = False
+
+
+def _rotation_vector(R: np.ndarray) -> np.ndarray:
+    """angle * axis [rad] of the rotation matrix R (angle in [0, pi])."""
+    c = min(max(0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0), -1.0), 1.0)
+    vee = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    angle = math.acos(c)
+    if angle < 1e-6:  # sin(angle) ~ angle: vee is the rotation vector
+        return vee
+    if angle < math.pi - 1e-3:
+        return (angle / math.sin(angle)) * vee
+    aa = RotationMatrix(R).ToAngleAxis()  # near pi: the axis from the symmetric part
+    return aa.angle() * aa.axis()
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:

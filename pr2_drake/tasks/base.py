@@ -59,6 +59,11 @@ class EpisodeStatus:
     def earned(self, item: str) -> bool:
         return any(e.item == item for e in self.items)
 
+    def __deepcopy__(self, memo) -> "EpisodeStatus":
+        # Drake copies the referee's abstract state at each of its updates: the generic
+        # deepcopy of a dataclass costs several times this. Items are immutable once earned.
+        return _copy_status(self)
+
 
 @dataclass
 class RubricItem:
