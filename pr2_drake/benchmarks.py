@@ -94,7 +94,8 @@ def bench_sim(argv: list[str]) -> int:
             cpus[m].append((time.process_time() - cpu) / a.seconds)
     where = f"task {a.task}" if a.task else "flat ground"
     cam = ", camera off" if a.no_camera else ""
-    print(f"standing controller on {where}, {a.seconds:g} s simulated, physics step 1 ms{cam}")
+    print(f"standing controller on {where}, {a.seconds:g} s simulated, physics step "
+          f"{episode.testbed.config.time_step * 1e3:g} ms{cam}")
     for m in modes:
         label = f"sleeping {m[0]:<3}" + (f", capture {m[1]:<3}" if a.capture != "on" else "")
         print(f"  {label}  real-time factor: median {statistics.median(rates[m]):.2f} "
