@@ -282,3 +282,19 @@ def test_the_grasp_point_keeps_away_from_other_objects_seen():
     assert np.linalg.norm(g - seq.others[0]) >= seq.p.grasp_offset + seq.p.grasp_margin
     assert np.linalg.norm(plain - seq.others[0]) < seq.p.grasp_offset  # would have taken it
     assert np.linalg.norm(g - shoulder) <= seq.p.reach
+
+
+def test_a_hand_hanging_under_a_table_edge_backs_out_before_it_rises():
+    from types import SimpleNamespace
+
+    from pr2_drake.agents.search.agent import Table
+
+    tab = Table("desk", np.array([0.0, 0.0]), np.array([1.0, 0.6]), 0.60)  # edge at y = -0.3
+    seq = SimpleNamespace(p=SearchAgentParams(edge_clearance=0.07))
+    facing = np.array([0.0, 1.0])  # the robot at y < -0.3, facing the desk
+    out = ObjectSearchSequencer._out_from_under
+    back = out(seq, np.array([0.1, -0.27, 0.50]), facing, tab)  # 3 cm under the top
+    assert back is not None and back[2] == 0.50 and back[0] == 0.1  # straight back, same height
+    assert not tab.contains(back, 0.07) and back[1] > -0.3 - 0.07 - 0.02
+    assert out(seq, np.array([0.1, -0.45, 0.50]), facing, tab) is None  # hangs clear
+    assert out(seq, np.array([0.1, -0.27, 0.65]), facing, tab) is None  # above the top

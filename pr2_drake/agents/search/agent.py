@@ -3,8 +3,9 @@ the coffee table.
 
 :class:`ObjectSearchAgent` is a Diagram of a sequencer (:class:`ObjectSearchSequencer`) and the
 walking controller with the arms in the whole-body QP (``WalkingController(arms="effort")``,
-its QP at 125 Hz: controllers/walking_search.yaml), built like :class:`pr2_drake.agents.valve.ValveAgent`. The sequencer is made of the search
-parts, each replaceable on its own (constructor arguments of :class:`ObjectSearchSequencer`):
+its QP at 125 Hz: controllers/walking_search.yaml), built like
+:class:`pr2_drake.agents.valve.ValveAgent`. The sequencer is made of the search parts, each
+replaceable on its own (constructor arguments of :class:`ObjectSearchSequencer`):
 
 - ``parser`` (:class:`~.instruction.InstructionParser`, anything with ``parse(sentence)``):
   the ``instruction`` prior -> target object, source furniture/room, destination;
