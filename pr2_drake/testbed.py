@@ -40,8 +40,8 @@ from pr2_drake.robot.params import RobotParams, load_robot_params
 from pr2_drake.scene import Scene, StartPose, build_flat_scene
 
 CONTACT_APPROXIMATIONS = ("lagged", "sap", "similar", "tamsi")
-DEFAULT_TIME_STEP = 0.001  # [s] physics step of a task whose YAML gives none, and of flat ground
 CONTACT_MODELS = ("point", "hydroelastic_with_fallback", "hydroelastic")
+DEFAULT_TIME_STEP = 0.001  # [s] physics step of a task whose YAML gives none, and of flat ground
 
 
 @dataclass
