@@ -227,6 +227,7 @@ class DetectorParams:
     max_extent: float = 0.40
     support_gap: float = 0.03
     support_ring: float = 0.15
+    foot_height: float = 0.03
     size_weight: float = 1.0
     flat_weight: float = 1.0
     min_score: float = 0.3
@@ -421,7 +422,18 @@ class ObjectDetector:
         full[y0 - Y0:y0 - Y0 + h, x0 - X0:x0 - X0 + w] = mask
         ring = cv2.dilate(full, np.ones((2 * pad + 1, 2 * pad + 1), np.uint8)) > full
         k = levels.index(level)
-        share = (plane_id[Y0:Y1, X0:X1][ring] == k).mean() if ring.any() else 0.0
+        plane_k = plane_id[Y0:Y1, X0:X1] == k
+        share = plane_k[ring].mean() if ring.any() else 0.0
+        if share < P.support_ring and P.foot_height > 0.0:
+            # A tall object seen against a wall: most of its outline is the wall; around its
+            # foot (its pixels up to foot_height above its lowest point) the plane shows.
+            z_box = np.full(full.shape, np.inf)
+            z_box[y0 - Y0:y0 - Y0 + h, x0 - X0:x0 - X0 + w][mask] = (
+                pts[y0:y0 + h, x0:x0 + w, 2][mask])
+            foot = (full > 0) & (z_box < bottom + P.foot_height)
+            ring = cv2.dilate(foot.astype(np.uint8), np.ones((2 * pad + 1, 2 * pad + 1),
+                                                                np.uint8)) > full
+            share = max(share, plane_k[ring].mean() if ring.any() else 0.0)
         if share < P.support_ring:
             return why.append((box, f"plane share {share:.2f}")) or None
         xy = p[:, :2].astype(np.float32)
