@@ -50,8 +50,10 @@ class CameraSettings:
         fps: frames per second in simulated time, at most 1000; the sensor renders only at
             this rate.
         fov_y_deg: vertical field of view [deg].
-        quality: "low" (no shadows, no environment lighting), "medium" (sky lighting and
-            sun shadows), "high" (as medium, larger shadow map, ambient occlusion, tone mapping).
+        quality: "low" (flat colours, no shadows, 4 sky lights), "medium" (PBR materials,
+            sun shadows, 8 sky lights and a ground bounce), "high" (as medium, larger shadow
+            map, 16 sky lights, ambient occlusion, tone mapping). Sky lights are sampled from
+            the sky map by median cut (:func:`environment_lights`).
             Lower quality renders faster; see :data:`PRESETS`.
         z_near, z_far: depth range [m]; depth outside it reads inf (too far) or 0 (too near).
     """
@@ -139,7 +141,8 @@ class RenderPreset:
         ssao: screen-space ambient occlusion (``ssao_samples`` samples within
             ``ssao_radius`` [m]; VTK's default of 128 samples costs three times the frame).
         exposure: tone-mapping exposure (None: no tone mapping).
-        sun: intensity of the sun (directional), the one light that casts shadows.
+        sun: luminance of the sun (directional), the one light that casts shadows; its
+            colour, like the sky's, is white balanced (:func:`environment_lights`).
         sky: total luminance of the sky lights: ``sky_lights`` lights median-cut from the
             upper half of the generated sky map ``models/textures/sky.png``, its sun disc masked
             out (:mod:`pr2_drake.environment_light`); each light carries its region's share of
@@ -177,9 +180,7 @@ PRESETS = {
     "high": RenderPreset(True, 4096, True, 1.0, sun=1.6, sky=2.75, bounce=0.25, sky_lights=16),
 }
 SKY_DISTANCE = 60.0  # [m] of the sky point lights from the world origin
-
-
-SUN_COLOR = (1.0, 0.97, 0.9)
+SUN_COLOR = (1.0, 0.97, 0.9)  # before white balance
 
 
 def _white_balance(preset: RenderPreset, sampled) -> np.ndarray:
