@@ -51,8 +51,8 @@ class CameraSettings:
             this rate.
         fov_y_deg: vertical field of view [deg].
         quality: "low" (flat colours, no shadows, 4 sky lights), "medium" (PBR materials,
-            sun shadows, 8 sky lights and a ground bounce), "high" (as medium, larger shadow
-            map, 16 sky lights, ambient occlusion, tone mapping). Sky lights are sampled from
+            sun shadows, 4 sky lights and a ground bounce), "high" (as medium, larger shadow
+            map, 8 sky lights, ambient occlusion, tone mapping). Sky lights are sampled from
             the sky map by median cut (:func:`environment_lights`).
             Lower quality renders faster; see :data:`PRESETS`.
         z_near, z_far: depth range [m]; depth outside it reads inf (too far) or 0 (too near).
@@ -152,7 +152,8 @@ class RenderPreset:
             gives the ground 0.22 of the sky's energy; the presets use less (``bounce`` is
             about a tenth of ``sky``), as the old hand-placed bounce light did.
         sky_lights: number of sky lights, a power of two. Each light costs per-pixel shading
-            (measured in benchmarks/README.md).
+            under software rendering: at ``high``, 640x480, about 20 CPU ms a frame per sky
+            light (16 lights made ``high`` 1.7x slower than 8; benchmarks/README.md).
         environment_map: Drake's own image-based lighting from ``models/textures/sky.png``
             (prefiltered diffuse and specular, so metallic surfaces reflect the sky). Off in
             every preset: VTK prefilters the map (irradiance, specular and BRDF tables of fixed
@@ -176,8 +177,8 @@ class RenderPreset:
 PRESETS = {
     "low": RenderPreset(False, 256, False, None, sun=0.85, sky=1.1, bounce=0.0, sky_lights=4),
     "medium": RenderPreset(True, 2048, False, None, sun=1.4, sky=2.75, bounce=0.25,
-                           sky_lights=8),
-    "high": RenderPreset(True, 4096, True, 1.0, sun=1.6, sky=2.75, bounce=0.25, sky_lights=16),
+                           sky_lights=4),
+    "high": RenderPreset(True, 4096, True, 1.0, sun=1.6, sky=2.75, bounce=0.25, sky_lights=8),
 }
 SKY_DISTANCE = 60.0  # [m] of the sky point lights from the world origin
 SUN_COLOR = (1.0, 0.97, 0.9)  # before white balance
@@ -241,13 +242,14 @@ def renderer_params(quality: str) -> RenderEngineVtkParams:
 
     Scenes use glTF PBR materials (:mod:`pr2_drake.materials`), so VTK shades physically
     based. Light: one sun, the only light that casts shadows, and diffuse image-based lighting
-    from the generated sky map by median-cut light sampling (:func:`environment_lights`: 4, 8
-    or 16 sky lights and a ground bounce, colours and directions from the map). This is not
+    from the generated sky map by median-cut light sampling (:func:`environment_lights`: 4 or
+    8 sky lights and a ground bounce, colours and directions from the map). This is not
     full image-based lighting: there are no prefiltered specular reflections of the sky on
     metallic surfaces (Drake's ``environment_map``, :class:`RenderPreset`, does that but
     costs minutes of prefiltering under software rendering; off). ``low``: no shadows
-    (fastest), four directional sky lights. ``medium``: sun shadows. ``high``: larger
-    shadow map, more sky lights, ambient occlusion and filmic tone mapping.
+    (fastest), four directional sky lights. ``medium``: sun shadows, four sky lights and the
+    ground bounce. ``high``: larger shadow map, eight sky lights, ambient occlusion and filmic
+    tone mapping.
     """
     preset = PRESETS[quality]
     params = RenderEngineVtkParams()
