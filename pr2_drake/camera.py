@@ -152,8 +152,10 @@ class RenderPreset:
             gives the ground 0.22 of the sky's energy; the presets use less (``bounce`` is
             about a tenth of ``sky``), as the old hand-placed bounce light did.
         sky_lights: number of sky lights, a power of two. Each light costs per-pixel shading
-            under software rendering: at ``high``, 640x480, about 20 CPU ms a frame per sky
-            light (16 lights made ``high`` 1.7x slower than 8; benchmarks/README.md).
+            under software rendering: at ``high``, 640x480, about 15-20 CPU ms a frame per
+            sky light (16 took 430-470 CPU ms a frame against 280-300 with the five
+            hand-placed lights before them, too slow for 5 fps; 8 take 0-17 % more than those
+            five; benchmarks/README.md).
         environment_map: Drake's own image-based lighting from ``models/textures/sky.png``
             (prefiltered diffuse and specular, so metallic surfaces reflect the sky). Off in
             every preset: VTK prefilters the map (irradiance, specular and BRDF tables of fixed
