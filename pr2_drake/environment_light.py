@@ -119,16 +119,20 @@ def _split(region, energy: np.ndarray, lat: np.ndarray):
     """The two halves of equal energy of a region, cut across its longer side on the sphere."""
     r0, r1, c0, c1 = region
     h, w = r1 - r0, c1 - c0
+    if h == 1 and w == 1:
+        raise ValueError("environment map too small for that many lights: a region of one "
+                         "pixel would have to be cut")
     mid_lat = 0.5 * (lat[r0] + lat[r1 - 1])
-    # angular sizes: rows span pi / total rows each, columns 2 pi / width scaled by cos(lat)
-    wide = w * 2 * math.cos(mid_lat) >= h if h > 1 and w > 1 else w > 1
+    # angular sizes [rad]: a row spans row_step of latitude, a column col_step of azimuth,
+    # which is col_step * cos(latitude) of arc
+    col_step = 2 * math.pi / energy.shape[1]
+    row_step = abs(lat[1] - lat[0]) if len(lat) > 1 else math.pi
+    wide = w * col_step * math.cos(mid_lat) >= h * row_step if h > 1 and w > 1 else w > 1
     profile = energy[r0:r1, c0:c1].sum(axis=0 if wide else 1)
-    n = len(profile)
     cum = np.cumsum(profile)
     # cut after index k (k = 0 .. n-2): left = cum[k]; choose the most even split
     k = int(np.argmin(np.abs(2 * cum[:-1] - cum[-1])))
     cut = k + 1
-    assert 0 < cut < n
     if wide:
         return [(r0, r1, c0, c0 + cut), (r0, r1, c0 + cut, c1)]
     return [(r0, r0 + cut, c0, c1), (r0 + cut, r1, c0, c1)]
