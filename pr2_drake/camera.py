@@ -50,8 +50,10 @@ class CameraSettings:
         fps: frames per second in simulated time, at most 1000; the sensor renders only at
             this rate.
         fov_y_deg: vertical field of view [deg].
-        quality: "low" (no shadows, no environment lighting), "medium" (sky lighting and
-            sun shadows), "high" (as medium, larger shadow map, ambient occlusion, tone mapping).
+        quality: "low" (flat colours, no shadows, 4 sky lights), "medium" (PBR materials,
+            sun shadows, 4 sky lights and a ground bounce), "high" (as medium, larger shadow
+            map, 8 sky lights, ambient occlusion, tone mapping). Sky lights are sampled from
+            the sky map by median cut (:func:`environment_lights`).
             Lower quality renders faster; see :data:`PRESETS`.
         z_near, z_far: depth range [m]; depth outside it reads inf (too far) or 0 (too near).
     """
@@ -139,16 +141,26 @@ class RenderPreset:
         ssao: screen-space ambient occlusion (``ssao_samples`` samples within
             ``ssao_radius`` [m]; VTK's default of 128 samples costs three times the frame).
         exposure: tone-mapping exposure (None: no tone mapping).
-        sun: intensity of the sun (directional).
-        sky: intensity of each of the sky lights: point lights :data:`SKY_DISTANCE` away
-            around the upper hemisphere, bluish, which never cast shadows (Drake's VTK engine
-            gives point lights no shadow maps; with the default attenuation they do not fall
-            off with distance). An approximation of sky light in place of the environment map.
-        bounce: intensity of the light reflected up by the ground (warm, from below).
-        environment_map: image-based lighting from ``models/textures/sky.png``. Off in every
-            preset: VTK prefilters the map (irradiance, specular and BRDF tables of fixed
+        sun: luminance of the sun (directional), the one light that casts shadows; its
+            colour, like the sky's, is white balanced (:func:`environment_lights`).
+        sky: total luminance of the sky lights: ``sky_lights`` lights median-cut from the
+            upper half of the generated sky map ``models/textures/sky.png``, its sun disc masked
+            out (:mod:`pr2_drake.environment_light`); each light carries its region's share of
+            this total, in its region's colour.
+        bounce: luminance of the ground's bounce light: the map's lower half (a uniform warm
+            grey ground) as one light from straight below, in its colour (0 = none). The map
+            gives the ground 0.22 of the sky's energy; the presets use less (``bounce`` is
+            about a tenth of ``sky``), as the old hand-placed bounce light did.
+        sky_lights: number of sky lights, a power of two. Each light costs per-pixel shading
+            under software rendering: at ``high``, 640x480, about 15-20 CPU ms a frame per
+            sky light (16 took 430-470 CPU ms a frame against 280-300 with the five
+            hand-placed lights before them, too slow for 5 fps; 8 take 0-17 % more than those
+            five; benchmarks/README.md).
+        environment_map: Drake's own image-based lighting from ``models/textures/sky.png``
+            (prefiltered diffuse and specular, so metallic surfaces reflect the sky). Off in
+            every preset: VTK prefilters the map (irradiance, specular and BRDF tables of fixed
             size, whatever the map's size) when the first image is rendered, measured 57 s
-            under software (llvmpipe) rendering for a 64x32 map.
+            (64x32 map) to 250 CPU s under software (llvmpipe) rendering.
     """
 
     shadows: bool
@@ -158,60 +170,93 @@ class RenderPreset:
     sun: float
     sky: float
     bounce: float
+    sky_lights: int = 4
     environment_map: bool = False
     ssao_samples: int = 16
     ssao_radius: float = 0.25
 
 
 PRESETS = {
-    "low": RenderPreset(False, 256, False, None, sun=0.85, sky=0.3, bounce=0.0),
-    "medium": RenderPreset(True, 2048, False, None, sun=1.4, sky=0.55, bounce=0.25),
-    "high": RenderPreset(True, 4096, True, 1.0, sun=1.6, sky=0.55, bounce=0.25),
+    "low": RenderPreset(False, 256, False, None, sun=0.85, sky=1.1, bounce=0.0, sky_lights=4),
+    "medium": RenderPreset(True, 2048, False, None, sun=1.4, sky=2.75, bounce=0.25,
+                           sky_lights=4),
+    "high": RenderPreset(True, 4096, True, 1.0, sun=1.6, sky=2.75, bounce=0.25, sky_lights=8),
 }
-# Sky lights: (azimuth, elevation) [deg]; the first four stand where low's fill lights stood.
-SKY_DIRECTIONS = ((45, 27), (135, 27), (225, 27), (315, 27), (0, 80))
-SKY_COLOR = (0.85, 0.9, 1.0)
-BOUNCE_COLOR = (1.0, 0.92, 0.8)
-
-
 SKY_DISTANCE = 60.0  # [m] of the sky point lights from the world origin
+SUN_COLOR = (1.0, 0.97, 0.9)  # before white balance
 
 
-def _from(azimuth_deg: float, elevation_deg: float, distance: float = SKY_DISTANCE) -> list[float]:
-    a, e = np.radians(azimuth_deg), np.radians(elevation_deg)
-    return [distance * np.cos(e) * np.cos(a), distance * np.cos(e) * np.sin(a),
-            distance * np.sin(e)]
+def _white_balance(preset: RenderPreset, sampled) -> np.ndarray:
+    """RGB gains (luminance 1) that make the sun, sky and bounce together light an upward
+    white surface neutral grey, as a camera's white balance would; the sky's blue is then
+    seen in shade only. ``sampled``: (EnvironmentLight, luminance) pairs."""
+    from pr2_drake.environment_light import LUMA
+
+    sun = np.asarray(SUN_COLOR)
+    rgb = preset.sun * sun / float(sun @ LUMA) * max(0.0, -SUN_DIRECTION[2])
+    for light, luminance in sampled:
+        c = np.asarray(light.color)
+        rgb = rgb + luminance * c / float(c @ LUMA) * max(0.0, -light.direction[2])
+    return rgb / float(rgb @ LUMA)
+
+
+def environment_lights(quality: str) -> list[LightParameter]:
+    """The sun (first, directional, the one light that casts shadows), then the sky and
+    ground-bounce lights of a preset (see :class:`RenderPreset`), sampled from
+    ``models/textures/sky.png`` by median cut (cached: the cut runs once per map and count).
+    Each light emits its share of the preset's luminance (its intensity is divided by its
+    colour's luminance); colours are white balanced (:func:`_white_balance`). With shadows on
+    they are point lights :data:`SKY_DISTANCE` from the origin (Drake's VTK engine gives point
+    lights no shadow maps; with the default attenuation they do not fall off with distance),
+    so the sun makes the only shadow; without, directional lights."""
+    from pr2_drake.environment_light import LUMA, ground_light, sky_lights
+    from pr2_drake.paths import data_path
+
+    preset = PRESETS[quality]
+    path = data_path("models", "textures", "sky.png")
+    sampled = [(light, preset.sky * light.intensity)
+               for light in sky_lights(path, preset.sky_lights, SUN_DIRECTION)]
+    if preset.bounce > 0:
+        sampled.append((ground_light(path), preset.bounce))
+    gains = _white_balance(preset, sampled)
+    sun = np.asarray(SUN_COLOR) / gains
+    lights = [LightParameter(type="directional", frame="world", direction=list(SUN_DIRECTION),
+                             intensity=preset.sun * float(np.asarray(SUN_COLOR) @ LUMA)
+                             / float(sun / sun.max() @ LUMA),
+                             color=Rgba(*(sun / sun.max())))]
+    for light, luminance in sampled:
+        c = np.asarray(light.color) / gains
+        c = c / c.max()
+        color, intensity = Rgba(*c), luminance / float(c @ LUMA)
+        if preset.shadows:  # point lights: no shadow maps
+            position = [-SKY_DISTANCE * v for v in light.direction]
+            lights.append(LightParameter(type="point", frame="world", position=position,
+                                         intensity=intensity, color=color))
+        else:
+            lights.append(LightParameter(type="directional", frame="world",
+                                         direction=list(light.direction),
+                                         intensity=intensity, color=color))
+    return lights
 
 
 def renderer_params(quality: str) -> RenderEngineVtkParams:
     """VTK render settings for a quality level (see :class:`CameraSettings`, :data:`PRESETS`).
 
     Scenes use glTF PBR materials (:mod:`pr2_drake.materials`), so VTK shades physically
-    based. One sun; sky and ground-bounce light from far point lights, which cast no shadows,
-    so the sun makes the only shadow. ``low``: no shadows (fastest); the sky lights are
-    directional there. ``medium``: sun shadows. ``high``: larger shadow map, ambient occlusion
-    and filmic tone mapping.
+    based. Light: one sun, the only light that casts shadows, and diffuse image-based lighting
+    from the generated sky map by median-cut light sampling (:func:`environment_lights`: 4 or
+    8 sky lights and a ground bounce, colours and directions from the map). This is not
+    full image-based lighting: there are no prefiltered specular reflections of the sky on
+    metallic surfaces (Drake's ``environment_map``, :class:`RenderPreset`, does that but
+    costs minutes of prefiltering under software rendering; off). ``low``: no shadows
+    (fastest), four directional sky lights. ``medium``: sun shadows, four sky lights and the
+    ground bounce. ``high``: larger shadow map, eight sky lights, ambient occlusion and filmic
+    tone mapping.
     """
     preset = PRESETS[quality]
     params = RenderEngineVtkParams()
     params.default_clear_color = [0.62, 0.75, 0.92]
-    lights = [LightParameter(type="directional", frame="world", direction=list(SUN_DIRECTION),
-                             intensity=preset.sun, color=Rgba(1.0, 0.97, 0.9))]
-    for az, el in SKY_DIRECTIONS[:4] if not preset.shadows else SKY_DIRECTIONS:
-        if preset.shadows:  # point lights: no shadow maps
-            light = LightParameter(type="point", frame="world", position=_from(az, el),
-                                   intensity=preset.sky,
-                                   color=Rgba(*SKY_COLOR))
-        else:
-            light = LightParameter(type="directional", frame="world",
-                                   direction=[-v for v in _from(az, el, 1.0)],
-                                   intensity=preset.sky)
-        lights.append(light)
-    if preset.bounce > 0:
-        lights.append(LightParameter(type="point", frame="world",
-                                     position=[0.0, 0.0, -SKY_DISTANCE],
-                                     intensity=preset.bounce,
-                                     color=Rgba(*BOUNCE_COLOR)))
+    lights = environment_lights(quality)
     params.lights = lights  # (the property returns a copy: assign, do not append)
     if preset.environment_map:
         from pydrake.geometry import EnvironmentMap, EquirectangularMap
