@@ -110,7 +110,7 @@ def test_extraction_is_cached():
 def test_presets_take_their_light_count_from_the_map(quality):
     preset = PRESETS[quality]
     lights = renderer_params(quality).lights
-    assert len(lights) == 1 + preset.sky_lights + (preset.bounce > 0)
+    assert len(lights) == 1 + (preset.sky_lights or 4) + (preset.bounce > 0)
     assert lights[0].direction == pytest.approx(list(SUN_DIRECTION))
 
 
