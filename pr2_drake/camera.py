@@ -52,7 +52,7 @@ class CameraSettings:
         fov_y_deg: vertical field of view [deg].
         quality: "low" (flat colours, no shadows, 4 fill lights), "medium" (PBR materials,
             sun shadows, 4 sky lights and a ground bounce), "high" (as medium, larger shadow
-            map, 8 sky lights, ambient occlusion, tone mapping). Sky lights are sampled from
+            map, ambient occlusion, tone mapping). Sky lights are sampled from
             the sky map by median cut (:func:`environment_lights`).
             Lower quality renders faster; see :data:`PRESETS`.
         z_near, z_far: depth range [m]; depth outside it reads inf (too far) or 0 (too near).
@@ -159,8 +159,9 @@ class RenderPreset:
             0.6 to 0.4, so that a seed it solved timed out). Each light costs per-pixel shading
             under software rendering: at ``high``, 640x480, about 15-20 CPU ms a frame per
             sky light (16 took 430-470 CPU ms a frame against 280-300 with the five
-            hand-placed lights before them, too slow for 5 fps; 8 take 0-17 % more than those
-            five; benchmarks/README.md).
+            hand-placed lights before them, too slow for 5 fps; 8 gave 5.0-5.4 fps on two
+            idle cores, at the target's edge; 4, as at ``medium``, 5.7-6.3 against 5.0-6.2 for
+            the five before them, and look the same; benchmarks/README.md).
         environment_map: Drake's own image-based lighting from ``models/textures/sky.png``
             (prefiltered diffuse and specular, so metallic surfaces reflect the sky). Off in
             every preset: VTK prefilters the map (irradiance, specular and BRDF tables of fixed
@@ -185,7 +186,7 @@ PRESETS = {
     "low": RenderPreset(False, 256, False, None, sun=0.85, sky=0.3, bounce=0.0, sky_lights=0),
     "medium": RenderPreset(True, 2048, False, None, sun=1.4, sky=2.75, bounce=0.25,
                            sky_lights=4),
-    "high": RenderPreset(True, 4096, True, 1.0, sun=1.6, sky=2.75, bounce=0.25, sky_lights=8),
+    "high": RenderPreset(True, 4096, True, 1.0, sun=1.6, sky=2.75, bounce=0.25, sky_lights=4),
 }
 SKY_DISTANCE = 60.0  # [m] of the sky point lights from the world origin
 # ``low``'s fixed fill lights (sky_lights 0): (azimuth, elevation) [deg], white.
@@ -267,14 +268,14 @@ def renderer_params(quality: str) -> RenderEngineVtkParams:
 
     Scenes use glTF PBR materials (:mod:`pr2_drake.materials`), so VTK shades physically
     based. Light: one sun, the only light that casts shadows, and diffuse image-based lighting
-    from the generated sky map by median-cut light sampling (:func:`environment_lights`: 4 or
-    8 sky lights and a ground bounce, colours and directions from the map). This is not
+    from the generated sky map by median-cut light sampling (:func:`environment_lights`: 4
+    sky lights and a ground bounce, colours and directions from the map). This is not
     full image-based lighting: there are no prefiltered specular reflections of the sky on
     metallic surfaces (Drake's ``environment_map``, :class:`RenderPreset`, does that but
     costs minutes of prefiltering under software rendering; off). ``low``: no shadows
-    (fastest), four fixed white directional fill lights. ``medium``: sun shadows, four sky lights and the
-    ground bounce. ``high``: larger shadow map, eight sky lights, ambient occlusion and filmic
-    tone mapping.
+    (fastest), four fixed white directional fill lights. ``medium``: sun shadows, the four
+    sky lights and the ground bounce. ``high``: as medium, a larger shadow map, ambient
+    occlusion and filmic tone mapping.
     """
     preset = PRESETS[quality]
     params = RenderEngineVtkParams()
