@@ -142,7 +142,8 @@ class RenderPreset:
             ``ssao_radius`` [m]; VTK's default of 128 samples costs three times the frame).
         exposure: tone-mapping exposure (None: no tone mapping).
         sun: luminance of the sun (directional), the one light that casts shadows; its
-            colour, like the sky's, is white balanced (:func:`environment_lights`).
+            colour, like the sky's, is white balanced (:func:`environment_lights`; not at
+            ``low``).
         sky: total luminance of the sky lights: ``sky_lights`` lights median-cut from the
             upper half of the generated sky map ``models/textures/sky.png``, its sun disc masked
             out (:mod:`pr2_drake.environment_light`); each light carries its region's share of
@@ -230,7 +231,8 @@ def environment_lights(quality: str) -> list[LightParameter]:
     colour's luminance); colours are white balanced (:func:`_white_balance`). With shadows on
     they are point lights :data:`SKY_DISTANCE` from the origin (Drake's VTK engine gives point
     lights no shadow maps; with the default attenuation they do not fall off with distance),
-    so the sun makes the only shadow; without, directional lights."""
+    so the sun makes the only shadow; without, directional lights. ``sky_lights`` 0
+    (``low``): the sun and fixed white fill lights instead (:func:`_fill_lights`)."""
     from pr2_drake.environment_light import LUMA, ground_light, sky_lights
     from pr2_drake.paths import data_path
 
