@@ -223,6 +223,42 @@ def test_force_on_a_held_hand_is_estimated_and_leaned_against():
     assert abs(pitch) < 0.1 and abs(roll) < 0.1
 
 
+def test_support_polygon_geometry():
+    """The hull and ray helpers of the hand-force limits on a 1 x 2 rectangle (and an inner
+    point that the hull drops)."""
+    from pr2_drake.bench.whole_body import convex_hull, ray_to_edge
+
+    hull = convex_hull(np.array([[0, 0], [1, 0], [1, 2], [0, 2], [0.5, 1]]))
+    assert len(hull) == 4
+    c = np.array([0.5, 1.0])
+    assert ray_to_edge(hull, c, np.array([1.0, 0.0])) == pytest.approx(0.5)
+    assert ray_to_edge(hull, c, np.array([0.0, -1.0])) == pytest.approx(1.0)
+    assert ray_to_edge(hull, c, np.array([1.0, 1.0]) / np.sqrt(2)) == pytest.approx(np.sqrt(0.5))
+    assert ray_to_edge(hull, np.array([2.0, 1.0]), np.array([1.0, 0.0])) == pytest.approx(-1.0)
+
+
+def test_turned_stance_holds_a_held_pull_above_the_square_on_limit():
+    """Line soles leave a square-on stance 0.13 m along the heading, so a pull built up at the
+    hand can be leaned against only up to m g (0.13 m - lean_margin) / h (about 51 N). Turned
+    45 degrees to the pull, the stance's diagonal is longer: a 58 N pull, above the square-on
+    limit, is held and let go without a fall."""
+    from pr2_drake.bench.whole_body import HAND_OFFSET_B, _sim, hand_force_row, support_limits
+
+    sim = _sim(held=True)
+    assert sim.run(1.0)
+    p_B, *_ = sim.base_pose()
+    sim.set_hand_targets([p_B + HAND_OFFSET_B, None])  # where the row holds the hand
+    assert sim.run(1.5)
+    square = support_limits(sim, np.array([1.0, 0.0, 0.0]))
+    assert square["chord"] == pytest.approx(0.13, abs=0.01)
+    assert square["built_up"] < 58.0
+    row = hand_force_row(58.0, "forward", held=True, ramp=0.5, turn_deg=-45.0)
+    assert not row["fell"], row
+    assert row["limit"] > 58.0
+    assert row["f_est"][0] == pytest.approx(58.0, abs=4.0)
+    assert row["pitch"] < 5.0 and row["roll"] < 5.0
+
+
 class _ThreeSteps(FootstepPlanner):
     """The test's own footstep planner: right, left, right onto fixed footholds, then stop."""
 

@@ -11,19 +11,27 @@ Flat ground, discrete SAP 1 ms, the walking controller with the arms in the QP
   hand would pull. "held": the controller's ``pick_state`` says the hand is attached, so the QP
   carries the hand's contact force (centred on its estimate from the arm torques) and the
   standing CoM leans against it; "not held": the same force unannounced (a disturbance).
-  Reported: fall, peak torso pitch and roll [deg], base drift [cm]. Each force is applied at
-  once, and (held) also built up and let go over ``FORCE_RAMP`` seconds each, as a valve's or a
-  rope's reaction builds and fades. A force applied at once is limited by the feet: its moment about the ground,
-  f (z_H - z_ground), must be met at that instant by m g times the CoM's distance from the
-  centre of pressure, at most half a sole length (0.075 m) until the CoM has moved; for this
-  34.5 kg robot and hand height that is about 35 N forward. Sideways the stance width gives
-  more. A ramped force is leaned against as it grows, up to what the soles allow: the CoM at
-  ``gait.lean_margin`` inside the heel points and the centre of pressure at the toe points,
-  m g (0.13 m - lean_margin) / (z_H - z_ground), about 52 N at 0.02 m, so 50 N forward has
-  no margin left (it holds with lean_margin 0, falls with 0.01). A step does not extend
-  that: KUAVO's line soles, side by side or split, span a parallelogram whose length along
-  the heading is one sole's 0.13 m at every point across it. What would: longer soles or
-  turning side-on to the force;
+  Reported: fall, peak torso pitch and roll [deg], base drift while the force acts [cm], and
+  the soles' limit for that row [N] (:func:`support_limits`, from the stance and hand height
+  at the time). Each force is applied at once, and (held) also built up and let go over ``FORCE_RAMP`` seconds
+  each, as a valve's or a rope's reaction builds and fades. Every case is run twice: square-on
+  (the robot faces the way it faced when the hand took hold), and turned ``TURN_DEG`` to the
+  right first (turning in place with the velocity command, the hand target left where it was),
+  so that the pull crosses the stance's diagonal.
+
+  The limits are statics (moments about the ground, the CoM at rest): a force f at the hand's
+  height h above the ground needs the centre of pressure f h / (m g) ahead of the CoM along f.
+  Applied at once, the CoM has not moved yet, so f <= m g d / h, d the distance from the CoM to
+  the edge of the support polygon along f. Built up slowly, the CoM leans back as far as
+  ``gait.lean_margin`` inside the polygon (so that it can be brought back when the force stops),
+  so f <= m g (chord - lean_margin) / h, chord the polygon's length along f through the CoM.
+  KUAVO's line soles (heel and toe contact points 0.13 m apart; a 0.15 m foot in TASKS.md) make
+  any square-on stance 0.13 m long along the heading, whether side by side or split: for this
+  34.5 kg robot and the hand 0.73 m up, 32 N at once and 51 N built up (with the 0.02 m
+  margin). So a square-on 50 N forward pull falls: at once it is over its limit, built up it is
+  at 98 % of it (the centre of pressure would have to sit on the toe points). Turned 45 degrees, the pull crosses the
+  stance's diagonal (0.18 m): 46 N at once, 75 N built up. An unannounced force ("not held") is
+  met only once the controller sees its effect, so those rows can fall below their limit;
 - hand tracking: targets on a grid in front of the left shoulder, one after the other (1.5 s
   each); the error at the end of each (median and max) [cm];
 - reach: the hand target moved forward (and, separately, down) in 2 cm steps until the hand
@@ -57,6 +65,8 @@ BASELINE_REF = "c5e37f2"
 HAND = 0  # left
 HAND_OFFSET_B = np.array([0.26, 0.14, 0.16])  # [m] held hand, from the base (heading frame)
 FORCE_RAMP = 0.5  # [s] build-up time of the ramped hand-force rows
+TURN_DEG = -45.0  # [deg] the turned hand-force rows first turn in place by this (right)
+TURN_RATE = 0.4  # [rad/s] ... at this yaw rate
 RAMP_STEP = 0.01  # [s] the ramped force is updated this often
 
 
@@ -67,17 +77,96 @@ def _sim(held: bool = False) -> WalkingSim:
     return sim
 
 
-def hand_force_row(force: float, direction: str, held: bool, ramp: float = 0.0) -> dict:
+def support_limits(sim: WalkingSim, direction_W: np.ndarray, hand: int = HAND) -> dict:
+    """The soles' statics limits [N] for a horizontal force along ``direction_W`` at a hand, in
+    the robot's current stance (see the module docstring): ``at_once`` = m g d / h and
+    ``built_up`` = m g (chord - lean_margin) / h, d [m] the distance from the CoM to the support
+    polygon's edge along the force, chord [m] the polygon's length along it through the CoM,
+    h [m] the hand's height above the ground. The polygon is the convex hull of both soles'
+    contact points (the controller's model, at its last tick)."""
+    core = sim.walker.core
+    m = core.model
+    u = np.asarray(direction_W, dtype=float)[:2]
+    u = u / np.linalg.norm(u)
+    points = np.hstack([m.sole_pose(s).rotation().matrix() @ m.p_SC
+                        + m.sole_pose(s).translation()[:, None] for s in (0, 1)])
+    ground = float(np.min(points[2]))
+    hull = convex_hull(points[:2].T)
+    c = m.com()[0][:2]
+    ahead, behind = ray_to_edge(hull, c, u), ray_to_edge(hull, c, -u)
+    h = float(m.hand_point(hand)[0][2]) - ground
+    weight = m.mass * m.gravity
+    margin = sim.walker.params.gait.lean_margin
+    return dict(at_once=weight * ahead / h,
+                built_up=weight * max(ahead + behind - margin, 0.0) / h,
+                chord=ahead + behind, height=h)
+
+
+def convex_hull(points: np.ndarray) -> np.ndarray:
+    """Counter-clockwise convex hull (k, 2) of 2-D points (n, 2) (Andrew's monotone chain)."""
+    pts = sorted(map(tuple, np.asarray(points, dtype=float)))
+
+    def half(seq):
+        out: list = []
+        for p in seq:
+            while len(out) >= 2 and ((out[-1][0] - out[-2][0]) * (p[1] - out[-2][1])
+                                     - (out[-1][1] - out[-2][1]) * (p[0] - out[-2][0])) <= 0.0:
+                out.pop()
+            out.append(p)
+        return out
+
+    lower, upper = half(pts), half(reversed(pts))
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def ray_to_edge(hull: np.ndarray, c: np.ndarray, u: np.ndarray) -> float:
+    """Distance [m] from c along the unit vector u to the edge of a counter-clockwise convex
+    polygon (negative if c is outside, behind that edge)."""
+    best = np.inf
+    for a, b in zip(hull, np.roll(hull, -1, axis=0)):
+        n = np.array([b[1] - a[1], a[0] - b[0]])  # outward normal of edge a -> b
+        nu = float(n @ u)
+        if nu > 1e-12:
+            best = min(best, float(n @ (a - c)) / nu)
+    return float(best)
+
+
+def _turn(sim: WalkingSim, angle: float) -> bool:
+    """Turn in place by ``angle`` [rad] (positive left) with the velocity command, then stand
+    for 1.5 s. Returns False if the robot fell."""
+    *_, yaw0 = sim.base_pose()
+    # The gait stops after the step in progress: stop commanding a little short of the angle.
+    stop_short = 0.5 * TURN_RATE * sim.walker.params.gait.single_support
+    sim.set_command(0.0, 0.0, float(np.sign(angle)) * TURN_RATE)
+    ok = True
+    t_max = sim.time + abs(angle) / TURN_RATE + 3.0
+    while ok and sim.time < t_max:
+        ok = sim.run(0.05, check_every=0.05)
+        *_, yaw = sim.base_pose()
+        if abs(np.angle(np.exp(1j * (yaw - yaw0)))) >= abs(angle) - stop_short:
+            break
+    sim.set_command(0.0, 0.0, 0.0)
+    return ok and sim.run(1.5)
+
+
+def hand_force_row(force: float, direction: str, held: bool, ramp: float = 0.0,
+                   turn_deg: float = 0.0) -> dict:
     """Stand, hold the left hand in front, pull it with ``force`` N for 3 s: applied and let go
     at once (``ramp`` = 0), or built up and let go linearly over ``ramp`` seconds each; then
-    1 s without it."""
+    1 s without it. ``turn_deg`` != 0: first turn in place by that angle [deg] (positive left);
+    the hand target and the force's direction stay as they were."""
     sim = _sim(held)
     ok = sim.run(1.0)
     p0, *_ = sim.base_pose()
+    if turn_deg:
+        ok = ok and _turn(sim, np.radians(turn_deg))
     sim.set_hand_targets([p0 + HAND_OFFSET_B, None])
     ok = ok and sim.run(1.5)
+    p_start, *_ = sim.base_pose()
     hand_body = sim.plant.GetBodyByName("l_arm_sphere")
     f = np.array([force, 0.0, 0.0]) if direction == "forward" else np.array([0.0, force, 0.0])
+    limits = support_limits(sim, f)
+    limit = limits["built_up"] if held and ramp > 0.0 else limits["at_once"]
     peak_pitch = peak_roll = 0.0
     t0 = sim.time
     t_end = t0 + 3.0
@@ -102,9 +191,12 @@ def hand_force_row(force: float, direction: str, held: bool, ramp: float = 0.0) 
     how = "held" if held else "not held"
     if ramp > 0.0:
         how += f", ramp {ramp:g} s"
+    if turn_deg:
+        how += f", turned {abs(turn_deg):g}d {'left' if turn_deg > 0 else 'right'}"
     return dict(name=f"{force:.0f} N {direction}, {how}", fell=not ok,
                 pitch=np.degrees(peak_pitch), roll=np.degrees(peak_roll),
-                drift=100 * float(np.linalg.norm(p1[:2] - p0[:2])), f_est=f_est)
+                drift=100 * float(np.linalg.norm(p1[:2] - p_start[:2])), f_est=f_est,
+                limit=limit, over_limit=force > limit)
 
 
 def tracking_grid(quick: bool) -> dict:
@@ -231,20 +323,28 @@ def main(argv: list[str] | None = None) -> int:
     if args.repeats < 1:
         parser.error("--repeats must be at least 1")
     q = args.quick
-    print("hand force (standing, left hand held in front, force at the hand sphere for 3 s)")
-    print(f"  {'case':38s} {'fell':>5s} {'pitch':>7s} {'roll':>7s} {'drift':>7s}  estimate [N]")
+    print("hand force (standing, left hand held in front, force at the hand sphere for 3 s; "
+          "limit: the soles' statics, see --help)")
+    print(f"  {'case':52s} {'fell':>5s} {'pitch':>7s} {'roll':>7s} {'drift':>7s} "
+          f"{'limit':>6s}  estimate [N]")
     forces = (30.0,) if q else (30.0, 50.0)
-    falls = 0
-    for force in forces:
-        for direction in ("forward", "sideways"):
-            cases = ((True, 0.0),) if q else ((True, 0.0), (False, 0.0), (True, FORCE_RAMP))
-            for held, ramp in cases:
-                r = hand_force_row(force, direction, held, ramp)
-                falls += r["fell"]
-                est = ", ".join(f"{x:+.0f}" for x in r["f_est"])
-                print(f"  {r['name']:38s} {'YES' if r['fell'] else 'no':>5s} "
-                      f"{r['pitch']:6.1f}d {r['roll']:6.1f}d {r['drift']:5.1f}cm  ({est})",
-                      flush=True)
+    falls = over = falls_within = 0
+    for turn in (0.0, TURN_DEG):
+        for force in forces:
+            for direction in ("forward", "sideways"):
+                cases = ((True, 0.0),) if q else ((True, 0.0), (False, 0.0), (True, FORCE_RAMP))
+                for held, ramp in cases:
+                    r = hand_force_row(force, direction, held, ramp, turn)
+                    falls += r["fell"]
+                    over += r["over_limit"]
+                    falls_within += r["fell"] and not r["over_limit"]
+                    est = ", ".join(f"{x:+.0f}" for x in r["f_est"])
+                    print(f"  {r['name']:52s} {'YES' if r['fell'] else 'no':>5s} "
+                          f"{r['pitch']:6.1f}d {r['roll']:6.1f}d {r['drift']:5.1f}cm "
+                          f"{r['limit']:5.0f}{'<' if r['over_limit'] else ' '}  ({est})",
+                          flush=True)
+    print(f"  falls: {falls}; rows whose force is above the soles' limit ('<'): {over}; "
+          f"falls within the limit: {falls_within}")
     g = tracking_grid(q)
     print(f"hand tracking, {g['n']} targets in front of the shoulder: error median "
           f"{g['median']:.1f} cm, max {g['max']:.1f} cm, fell: {g['fell']}")
@@ -271,7 +371,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"  {name:22s} median {statistics.median(wall):.2f} "
                   f"({', '.join(f'{x:.2f}' for x in wall)}); CPU-time RTF median "
                   f"{statistics.median(cpu):.2f} ({', '.join(f'{x:.2f}' for x in cpu)})")
-    print(f"falls in the hand-force rows: {falls}")
+    print(f"hand-force rows: {falls} falls, {falls_within} of them within the soles' limit")
     return 0
 
 
