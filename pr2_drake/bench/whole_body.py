@@ -328,7 +328,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  {'case':52s} {'fell':>5s} {'pitch':>7s} {'roll':>7s} {'drift':>7s} "
           f"{'limit':>6s}  estimate [N]")
     forces = (30.0,) if q else (30.0, 50.0)
-    falls = over = falls_within = 0
+    falls = over = falls_within = held_within = held_within_falls = 0
     for turn in (0.0, TURN_DEG):
         for force in forces:
             for direction in ("forward", "sideways"):
@@ -338,13 +338,16 @@ def main(argv: list[str] | None = None) -> int:
                     falls += r["fell"]
                     over += r["over_limit"]
                     falls_within += r["fell"] and not r["over_limit"]
+                    held_within += held and not r["over_limit"]
+                    held_within_falls += held and r["fell"] and not r["over_limit"]
                     est = ", ".join(f"{x:+.0f}" for x in r["f_est"])
                     print(f"  {r['name']:52s} {'YES' if r['fell'] else 'no':>5s} "
                           f"{r['pitch']:6.1f}d {r['roll']:6.1f}d {r['drift']:5.1f}cm "
                           f"{r['limit']:5.0f}{'<' if r['over_limit'] else ' '}  ({est})",
                           flush=True)
     print(f"  falls: {falls}; rows whose force is above the soles' limit ('<'): {over}; "
-          f"falls within the limit: {falls_within}")
+          f"falls within the limit: {falls_within}, of which held: {held_within_falls} "
+          f"(of {held_within} held rows within their limit)")
     g = tracking_grid(q)
     print(f"hand tracking, {g['n']} targets in front of the shoulder: error median "
           f"{g['median']:.1f} cm, max {g['max']:.1f} cm, fell: {g['fell']}")
