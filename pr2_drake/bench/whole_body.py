@@ -131,7 +131,7 @@ def ray_to_edge(hull: np.ndarray, c: np.ndarray, u: np.ndarray) -> float:
     return float(best)
 
 
-def _turn(sim: WalkingSim, angle: float) -> bool:
+def turn_in_place(sim: WalkingSim, angle: float) -> bool:
     """Turn in place by ``angle`` [rad] (positive left) with the velocity command, then stand
     for 1.5 s. Returns False if the robot fell."""
     *_, yaw0 = sim.base_pose()
@@ -150,16 +150,18 @@ def _turn(sim: WalkingSim, angle: float) -> bool:
 
 
 def hand_force_row(force: float, direction: str, held: bool, ramp: float = 0.0,
-                   turn_deg: float = 0.0) -> dict:
+                   turn_deg: float = 0.0, let_go: float | None = None) -> dict:
     """Stand, hold the left hand in front, pull it with ``force`` N for 3 s: applied and let go
-    at once (``ramp`` = 0), or built up and let go linearly over ``ramp`` seconds each; then
-    1 s without it. ``turn_deg`` != 0: first turn in place by that angle [deg] (positive left);
-    the hand target and the force's direction stay as they were."""
+    at once (``ramp`` = 0), or built up and let go linearly over ``ramp`` seconds each (``let_go``
+    [s] to let go over another time, 0 = at once); then 1 s without it. ``turn_deg`` != 0:
+    first turn in place by that angle [deg] (positive left); the hand target and the force's
+    direction stay as they were."""
+    let_go = ramp if let_go is None else let_go
     sim = _sim(held)
     ok = sim.run(1.0)
     p0, *_ = sim.base_pose()
     if turn_deg:
-        ok = ok and _turn(sim, np.radians(turn_deg))
+        ok = ok and turn_in_place(sim, np.radians(turn_deg))
     sim.set_hand_targets([p0 + HAND_OFFSET_B, None])
     ok = ok and sim.run(1.5)
     p_start, *_ = sim.base_pose()
@@ -182,8 +184,8 @@ def hand_force_row(force: float, direction: str, held: bool, ramp: float = 0.0,
     p1, *_ = sim.base_pose()
     f_est = sim.walker.core.hand_force.f[HAND].copy()
     t1 = sim.time
-    while ok and sim.time < t1 + ramp - 1e-9:  # let go as it was built up
-        sim.push((1.0 - (sim.time - t1 + RAMP_STEP) / ramp) * f, body=hand_body,
+    while ok and sim.time < t1 + let_go - 1e-9:  # let go (as it was built up)
+        sim.push((1.0 - (sim.time - t1 + RAMP_STEP) / let_go) * f, body=hand_body,
                  p_BQ=np.zeros(3))
         ok = sim.run(RAMP_STEP, check_every=RAMP_STEP)
     sim.push(None)
@@ -191,6 +193,8 @@ def hand_force_row(force: float, direction: str, held: bool, ramp: float = 0.0,
     how = "held" if held else "not held"
     if ramp > 0.0:
         how += f", ramp {ramp:g} s"
+    if let_go != ramp:
+        how += f", let go over {let_go:g} s" if let_go > 0.0 else ", let go at once"
     if turn_deg:
         how += f", turned {abs(turn_deg):g}d {'left' if turn_deg > 0 else 'right'}"
     return dict(name=f"{force:.0f} N {direction}, {how}", fell=not ok,
