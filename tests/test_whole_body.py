@@ -225,8 +225,8 @@ def test_force_on_a_held_hand_is_estimated_and_leaned_against():
 
 def test_support_polygon_geometry():
     """The hull and ray helpers of the hand-force limits on a 1 x 2 rectangle (and an inner
-    point that the hull drops)."""
-    from pr2_drake.bench.whole_body import convex_hull, ray_to_edge
+    point that the hull drops); a force direction with no horizontal part is refused."""
+    from pr2_drake.bench.whole_body import convex_hull, ray_to_edge, support_limits
 
     hull = convex_hull(np.array([[0, 0], [1, 0], [1, 2], [0, 2], [0.5, 1]]))
     assert len(hull) == 4
@@ -235,6 +235,8 @@ def test_support_polygon_geometry():
     assert ray_to_edge(hull, c, np.array([0.0, -1.0])) == pytest.approx(1.0)
     assert ray_to_edge(hull, c, np.array([1.0, 1.0]) / np.sqrt(2)) == pytest.approx(np.sqrt(0.5))
     assert ray_to_edge(hull, np.array([2.0, 1.0]), np.array([1.0, 0.0])) == pytest.approx(-1.0)
+    with pytest.raises(ValueError, match="direction_W"):
+        support_limits(None, np.array([0.0, 0.0, 1.0]))  # vertical: no horizontal direction
 
 
 def test_turned_stance_holds_a_held_pull_above_the_square_on_limit():

@@ -13,11 +13,11 @@ Flat ground, discrete SAP 1 ms, the walking controller with the arms in the QP
   standing CoM leans against it; "not held": the same force unannounced (a disturbance).
   Reported: fall, peak torso pitch and roll [deg], base drift while the force acts [cm], and
   the soles' limit for that row [N] (:func:`support_limits`, from the stance and hand height
-  at the time). Each force is applied at once, and (held) also built up and let go over ``FORCE_RAMP`` seconds
-  each, as a valve's or a rope's reaction builds and fades. Every case is run twice: square-on
-  (the robot faces the way it faced when the hand took hold), and turned ``TURN_DEG`` to the
-  right first (turning in place with the velocity command, the hand target left where it was),
-  so that the pull crosses the stance's diagonal.
+  at the time). Each force is applied at once, and (held) also built up and let go over
+  ``FORCE_RAMP`` seconds each, as a valve's or a rope's reaction builds and fades. Every case
+  is run twice: square-on (the robot faces the way it faced when the hand took hold), and
+  turned ``TURN_DEG`` to the right first (turning in place with the velocity command, the hand
+  target left where it was), so that the pull crosses the stance's diagonal.
 
   The limits are statics (moments about the ground, the CoM at rest): a force f at the hand's
   height h above the ground needs the centre of pressure f h / (m g) ahead of the CoM along f.
@@ -29,9 +29,10 @@ Flat ground, discrete SAP 1 ms, the walking controller with the arms in the QP
   any square-on stance 0.13 m long along the heading, whether side by side or split: for this
   34.5 kg robot and the hand 0.73 m up, 32 N at once and 51 N built up (with the 0.02 m
   margin). So a square-on 50 N forward pull falls: at once it is over its limit, built up it is
-  at 98 % of it (the centre of pressure would have to sit on the toe points). Turned 45 degrees, the pull crosses the
-  stance's diagonal (0.18 m): 46 N at once, 75 N built up. An unannounced force ("not held") is
-  met only once the controller sees its effect, so those rows can fall below their limit;
+  at 98 % of it (the centre of pressure would have to sit on the toe points). Turned 45
+  degrees, the pull crosses the stance's diagonal (0.18 m): 46 N at once, 75 N built up. An
+  unannounced force ("not held") is met only once the controller sees its effect, so those rows
+  can fall below their limit;
 - hand tracking: targets on a grid in front of the left shoulder, one after the other (1.5 s
   each); the error at the end of each (median and max) [cm];
 - reach: the hand target moved forward (and, separately, down) in 2 cm steps until the hand
@@ -84,10 +85,13 @@ def support_limits(sim: WalkingSim, direction_W: np.ndarray, hand: int = HAND) -
     polygon's edge along the force, chord [m] the polygon's length along it through the CoM,
     h [m] the hand's height above the ground. The polygon is the convex hull of both soles'
     contact points (the controller's model, at its last tick)."""
+    u = np.asarray(direction_W, dtype=float)[:2]
+    if not np.all(np.isfinite(u)) or np.linalg.norm(u) < 1e-9:
+        raise ValueError(f"direction_W must have a finite, non-zero horizontal part, got "
+                         f"{direction_W!r}")
+    u = u / np.linalg.norm(u)
     core = sim.walker.core
     m = core.model
-    u = np.asarray(direction_W, dtype=float)[:2]
-    u = u / np.linalg.norm(u)
     points = np.hstack([m.sole_pose(s).rotation().matrix() @ m.p_SC
                         + m.sole_pose(s).translation()[:, None] for s in (0, 1)])
     ground = float(np.min(points[2]))
