@@ -84,7 +84,8 @@ def support_limits(sim: WalkingSim, direction_W: np.ndarray, hand: int = HAND) -
     ``built_up`` = m g (chord - lean_margin) / h, d [m] the distance from the CoM to the support
     polygon's edge along the force, chord [m] the polygon's length along it through the CoM,
     h [m] the hand's height above the ground. The polygon is the convex hull of both soles'
-    contact points (the controller's model, at its last tick)."""
+    contact points (the controller's model, at its last tick); also returned: ``chord``,
+    ``height``, ``hull`` (k, 2) [m, W] and the CoM's ``com`` (2) [m, W]."""
     u = np.asarray(direction_W, dtype=float)[:2]
     if not np.all(np.isfinite(u)) or np.linalg.norm(u) < 1e-9:
         raise ValueError(f"direction_W must have a finite, non-zero horizontal part, got "
@@ -92,8 +93,9 @@ def support_limits(sim: WalkingSim, direction_W: np.ndarray, hand: int = HAND) -
     u = u / np.linalg.norm(u)
     core = sim.walker.core
     m = core.model
-    points = np.hstack([m.sole_pose(s).rotation().matrix() @ m.p_SC
-                        + m.sole_pose(s).translation()[:, None] for s in (0, 1)])
+    soles = [m.sole_pose(side) for side in (0, 1)]
+    points = np.hstack([X.rotation().matrix() @ m.p_SC + X.translation()[:, None]
+                        for X in soles])
     ground = float(np.min(points[2]))
     hull = convex_hull(points[:2].T)
     c = m.com()[0][:2]
@@ -103,7 +105,7 @@ def support_limits(sim: WalkingSim, direction_W: np.ndarray, hand: int = HAND) -
     margin = sim.walker.params.gait.lean_margin
     return dict(at_once=weight * ahead / h,
                 built_up=weight * max(ahead + behind - margin, 0.0) / h,
-                chord=ahead + behind, height=h)
+                chord=ahead + behind, height=h, hull=hull, com=c.copy())
 
 
 def convex_hull(points: np.ndarray) -> np.ndarray:
