@@ -161,7 +161,7 @@ def test_bar_takeoff_timing_centres_the_passage_in_the_clear_window():
 
 
 def test_moving_bar_agent_jumps_over_the_bar_without_touching_it():
-    from pr2_drake.episode import run_episode
+    from pr2_drake.run import run_episode
     from pr2_drake.scenario import Scenario
 
     report = run_episode(Scenario(task=3, seed=0))

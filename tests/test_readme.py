@@ -24,7 +24,7 @@ def test_readme_snippet_runs(index, tmp_path, monkeypatch):
 
 
 def test_hold_still_runs_from_a_file_as_the_readme_says(tmp_path):
-    from pr2_drake.episode import run_episode
+    from pr2_drake.run import run_episode
     from pr2_drake.scenario import Scenario
 
     snippet = next(s for s in SNIPPETS if "class HoldStill" in s)

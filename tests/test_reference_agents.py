@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from pr2_drake.agents import DEFAULT_AGENTS
+from pr2_drake.tasks import DEFAULT_AGENTS
 from pr2_drake.agents.walk_to_goal import RockyRoadAgent, SlopeAgent
 from pr2_drake.controllers.footsteps import FlatTerrain, RoughTerrain, SlopeTerrain
 from pr2_drake.controllers.swing import SwingTrajectory

@@ -29,7 +29,8 @@ import numpy as np
 
 from pr2_drake.compete.child import ALLOWED_INPUTS
 from pr2_drake.compete.sandbox import AgentFault, AgentProcess, SandboxLimits
-from pr2_drake.episode import Episode, agent_spec
+from pr2_drake.episode import Episode
+from pr2_drake.run import agent_spec
 from pr2_drake.scenario import Scenario
 
 

@@ -49,5 +49,22 @@ def get_task(task: int | str) -> TaskDefinition:
     return importlib.import_module(module).Task(spec)
 
 
+# Built-in default agent per task id (None = flat ground).
+DEFAULT_AGENTS: dict[int | None, str] = {
+    None: "pr2_drake.controllers.standing:StandingController",
+    1: "pr2_drake.agents.walk_to_goal:RockyRoadAgent",
+    2: "pr2_drake.agents.valve:ValveAgent",
+    3: "pr2_drake.agents.moving_bar:MovingBarAgent",
+    4: "pr2_drake.agents.walk_to_goal:SlopeAgent",
+    5: "pr2_drake.agents.steps_button:StepsButtonAgent",
+    6: "pr2_drake.agents.search.agent:ObjectSearchAgent",
+}
+
+
+def default_agent(task: int | str | None) -> str:
+    """The built-in agent of a task (id or name; None = flat ground), as ``module:Class``."""
+    return DEFAULT_AGENTS[None if task is None else task_id(task)]
+
+
 def list_tasks() -> list[tuple[int, str]]:
     return [(i, name) for i, (name, _) in REGISTRY.items()]
