@@ -322,7 +322,7 @@ def cmd_controller_server(args) -> int:
 
 
 def cmd_bench(args) -> int:
-    from pr2_drake.benchmarks import run_benchmark
+    from pr2_drake.bench import run_benchmark
 
     return run_benchmark(args.what, args.rest)
 
@@ -415,7 +415,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="simulated seconds per request without a 'time' field (default 0.001)")
     p.set_defaults(func=cmd_controller_server)
 
-    from pr2_drake.benchmarks import BENCHMARKS
+    from pr2_drake.bench import BENCHMARKS
 
     p = sub.add_parser("bench", help="benchmarks: " + ", ".join(BENCHMARKS))
     p.add_argument("what", choices=(*BENCHMARKS, "all"))

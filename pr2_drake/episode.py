@@ -49,6 +49,7 @@ _TESTBED_DIRS = (str(_PACKAGE / "tasks"),)
 _SLEEP_FILE = str(_PACKAGE / "sleep.py")
 
 Wiring = Callable[[DiagramBuilder, Testbed], Any]
+SceneBuilder = Callable[[Any, np.random.Generator], Any]  # f(plant, rng) -> Scene
 
 
 class Episode:
@@ -60,6 +61,9 @@ class Episode:
             already in ``builder``); its return value is kept as :attr:`blocks`. None: no
             blocks (the caller fixes the testbed's inputs, as :class:`pr2_drake.env.Env` does).
         meshcat: draw to this Meshcat.
+        scene_builder: ``f(plant, rng) -> Scene`` in place of the scenario's task or flat
+            ground (a benchmark's own terrain, e.g. the stairs rig); the scenario's task must
+            be None.
 
     Attributes:
         testbed, diagram, simulator, context: the built system and its root context.
@@ -72,13 +76,16 @@ class Episode:
     """
 
     def __init__(self, scenario: Scenario, wire: Wiring | None = None,
-                 meshcat: Meshcat | None = None):
+                 meshcat: Meshcat | None = None, scene_builder: SceneBuilder | None = None):
         scenario.validate()
         # Free the diagrams of earlier episodes first: their reference cycles (see
         # pr2_drake.lifetime) wait for a full collection, and each holds ~35 MB.
         gc.collect()
         self.scenario = scenario
-        testbed = Testbed(scenario.testbed_config(), meshcat)
+        config = scenario.testbed_config()
+        if scene_builder is not None:
+            config = replace(config, scene_builder=scene_builder)
+        testbed = Testbed(config, meshcat)
         builder = DiagramBuilder()
         builder.AddSystem(testbed)
         self.blocks = wire(builder, testbed) if wire is not None else None

@@ -85,7 +85,7 @@ def test_jump_command_errors_name_the_port():
 @pytest.fixture(scope="module")
 def vertical_jump():
     """A 0.10 m vertical jump in closed loop (testbed, 1 ms SAP), sampled every 5 ms."""
-    from pr2_drake.bench.jumping import JumpSim
+    from pr2_drake.bench.rigs import JumpSim
 
     sim = JumpSim()
     sim.advance(1.0)

@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pr2_drake.bench.stairs import LANE_GAIN, StairsSim
+from pr2_drake.bench.rigs import StairsSim
+from pr2_drake.bench.stairs import LANE_GAIN
 from pr2_drake.controllers.swing import SwingTrajectory
 from pr2_drake.controllers.terrain_model import (
     PatchTerrain,

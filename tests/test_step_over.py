@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pr2_drake.bench.stairs import StairsSim
+from pr2_drake.bench.rigs import StairsSim
 from pr2_drake.controllers.footsteps import VelocityFootstepPlanner
 from pr2_drake.controllers.step_over import Obstacle, StepOverFootstepPlanner
 from pr2_drake.controllers.terrain_model import PatchTerrain

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from pydrake.multibody.plant import MultibodyPlant
 
-from pr2_drake.bench.walking import WalkingSim
+from pr2_drake.bench.rigs import WalkingSim
 from pr2_drake.controllers.walking import WalkingController, obs_to_vectors
 from pr2_drake.controllers.walking_core import COMMAND_PORT, Phase, WalkingCore, check_command
 from pr2_drake.controllers.walking_params import WalkingParams

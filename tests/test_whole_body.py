@@ -9,7 +9,7 @@ import pytest
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-from pr2_drake.bench.walking import WalkingSim
+from pr2_drake.bench.rigs import WalkingSim
 from pr2_drake.controllers.footsteps import FixedFootstepPlanner, FootstepPlanner
 from pr2_drake.controllers.plan import WholeBodyPlan
 from pr2_drake.controllers.tasks import HandUprightTask, PostureTask, TaskCost

@@ -58,7 +58,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pr2_drake.bench.walking import WalkingSim
+from pr2_drake.bench.rigs import WalkingSim
 from pr2_drake.grasp import PickState
 
 #: The last commit before the whole-body split (WalkingCore as one class): the "before".
@@ -280,7 +280,10 @@ def _count_ticks(sim: WalkingSim) -> int:
 
 _RTF_SNIPPET = """
 import sys, time
-from pr2_drake.bench.walking import WalkingSim
+try:
+    from pr2_drake.bench.rigs import WalkingSim
+except ImportError:  # a commit before the rigs module
+    from pr2_drake.bench.walking import WalkingSim
 sim = WalkingSim()
 sim.set_command(0.3, 0.0, 0.0)
 c, w = time.process_time(), time.perf_counter()

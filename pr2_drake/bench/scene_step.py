@@ -1,9 +1,10 @@
-"""Plant step time of a task scene with KUAVO standing on it, against flat ground.
+"""``pr2-drake bench scene-step``: plant step time of a task scene with KUAVO standing on it,
+against flat ground.
 
 The robot is held by the plant's implicit joint PD (position targets = the nominal standing pose),
 so the measured time is the MultibodyPlant step alone (no Python systems in the loop):
 
-    PYTHONPATH=. python benchmarks/scene_step_time.py [--seconds 1.0] none 1 1@2.0,0.0 3 4 5
+    pr2-drake bench scene-step [--seconds 1.0] none 1 1@2.0,0.0 3 4 5
 
 An argument is a task id ("none" = flat ground), optionally with "@x,y" for the start position.
 Prints the mean wall time per 1 ms step and the number of point contacts at the end.
@@ -91,10 +92,12 @@ def _local_q(plant, robot, joint) -> int:
     return int(list(full).index(joint.position_start()))
 
 
-if __name__ == "__main__":
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="pr2-drake bench scene-step",
+                                 description=__doc__.splitlines()[0])
     ap.add_argument("tasks", nargs="+")
     ap.add_argument("--seconds", type=float, default=1.0)
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     for t in args.tasks:
         print(measure(t, args.seconds), flush=True)
+    return 0
