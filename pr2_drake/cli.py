@@ -402,13 +402,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--port", type=int, default=8800, help="TCP port (0: a free one; default 8800)")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     p.add_argument("--walking", metavar="YAML", help="walking parameters "
-                                                     "(default controllers/walking.yaml)")
+                                                     "(default params/controllers/walking.yaml)")
     p.add_argument("--overrides", metavar="YAML", help="partial walking YAML on top, e.g. "
-                                                       "controllers/walking_rough.yaml")
+                                                       "params/controllers/walking_rough.yaml")
     p.add_argument("--terrain", choices=("flat", "rough"), default="flat",
                    help="footholds: flat, or rough (unknown stones, task 1)")
     p.add_argument("--jumping", metavar="YAML", help="jump parameters "
-                                                     "(default controllers/jumping.yaml)")
+                                                     "(default params/controllers/jumping.yaml)")
     p.add_argument("--jump-apex", type=float, default=0.18,
                    help="CoM rise of a change_state 2 jump [m] (default 0.18)")
     p.add_argument("--request-period", type=float, default=0.001,

@@ -30,7 +30,7 @@ from pr2_drake.env import Env
 from pr2_drake.episode import Episode, Wiring, wire_system
 from pr2_drake.recording import frame_robot, quiet_meshcat, with_camera_recorder, write_replay
 from pr2_drake.scenario import Scenario, ScenarioError
-from pr2_drake.tasks import default_agent
+from pr2_drake.tasks import AgentEntry, agent_entry
 from pr2_drake.tasks.base import EpisodeStatus
 from pr2_drake.testbed import Testbed
 
@@ -60,10 +60,20 @@ def agent_spec(scenario: Scenario) -> str:
     """The agent a scenario runs: its ``agent``, its ``diagram``, or the task's default."""
     if scenario.diagram:
         return scenario.diagram
-    if scenario.agent:
-        return scenario.agent
+    return _agent_entry(scenario).agent
+
+
+def agent_params(scenario: Scenario) -> dict[str, str]:
+    """The parameter files the scenario's agent is built with: its task's registry row's (when
+    it is that task's default agent), then the scenario's ``agent_params`` over them."""
+    if scenario.diagram:
+        return dict(scenario.agent_params)
+    return {**_agent_entry(scenario).agent_params, **scenario.agent_params}
+
+
+def _agent_entry(scenario: Scenario) -> AgentEntry:
     try:
-        return default_agent(scenario.task)
+        return agent_entry(scenario.task, scenario.agent or None)
     except ValueError as e:
         raise ScenarioError(str(e)) from None
 
@@ -144,9 +154,9 @@ def run_episode(scenario: Scenario, *, meshcat: Meshcat | None = None,
 
 def _agent_kwargs(scenario: Scenario, testbed: Testbed) -> dict[str, Any]:
     """What an agent's (or a diagram block's) constructor may take: the task's priors, the
-    task id, the seed and the scenario's ``agent_params``."""
+    task id, the seed and the parameter files (:func:`agent_params`)."""
     return dict(priors=dict(testbed.scene.priors), task=scenario.task, seed=scenario.seed,
-                **scenario.agent_params)
+                **agent_params(scenario))
 
 
 def _agent_wiring(scenario: Scenario, spec: str) -> Wiring:

@@ -11,7 +11,7 @@ Example (see ``scenarios/valve_seed7.yaml``)::
     task: valve            # id 1..6 or name, any case; omit for flat ground
     seed: 7
     agent: my_pkg.solver:Solver    # or path/to/solver.py:Solver; omit for the built-in agent
-    agent_params: {params: controllers/goal_planner.yaml}
+    agent_params: {params: params/agents/goal_planner.yaml}
     seconds: 30            # stop earlier than the task's limit
     plant: {time_step: 0.001, contact_approximation: lagged}
     sleep: {enabled: true, rest_time: 0.5}   # resting free objects sleep (task 6)
@@ -87,7 +87,7 @@ class Scenario:
         seed: episode seed; every random choice flows from it.
         agent: "module:Class" or "path/to/file.py:Class"; None = the task's built-in agent.
         agent_params: extra keyword arguments for the agent's constructor (typically
-            parameter files, e.g. ``{params: controllers/goal_planner.yaml}``); given only
+            parameter files, e.g. ``{params: params/agents/goal_planner.yaml}``); given only
             where the constructor accepts them.
         diagram: a diagram YAML (see :mod:`pr2_drake.diagrams`) whose blocks replace the agent.
         seconds: stop after this much simulated time [s]; None = the task's time limit

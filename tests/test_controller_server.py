@@ -26,7 +26,7 @@ from pr2_drake.scenario import Scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 SOLVER = ROOT / "examples" / "pr2_solver" / "solver.py"
-ROUGH = ControllerServerConfig(overrides="controllers/walking_rough.yaml", terrain="rough")
+ROUGH = ControllerServerConfig(overrides="params/controllers/walking_rough.yaml", terrain="rough")
 
 
 @pytest.fixture(scope="module")

@@ -24,7 +24,7 @@ from pr2_drake.controllers.tread_steps import (
 from pr2_drake.controllers.walking_params import WalkingParams
 from tests._locomotion_sim import scene_geometry
 
-PARAMS = WalkingParams.load().with_overrides("controllers/walking_stairs.yaml")
+PARAMS = WalkingParams.load().with_overrides("params/controllers/walking_stairs.yaml")
 HALF_FOOT = 0.075  # [m] sole centre to heel / toe
 
 

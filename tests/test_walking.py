@@ -158,7 +158,7 @@ def test_bad_commands():
         check_command([0.1, 0.2])
     core = WalkingCore()
     lim = core.params.limits
-    # Out-of-range commands are clipped to the limits of controllers/walking.yaml.
+    # Out-of-range commands are clipped to the limits of params/controllers/walking.yaml.
     np.testing.assert_allclose(core.clip_command([5.0, -3.0, 9.0]),
                                [lim.vx_max, -lim.vy_max, lim.yaw_rate_max])
     np.testing.assert_allclose(core.clip_command([-5.0, 3.0, -9.0]),

@@ -5,7 +5,7 @@ physics step in ``next_action(obs)`` and ask the walking-controller server (TCP,
 the leg torques with their own small client: a 4-byte big-endian length, then JSON. This one
 walks to ``obs["goal"]`` (task 1's goal centre). Start the server, then run it::
 
-    pr2-drake controller-server --port 8800 --overrides controllers/walking_rough.yaml \
+    pr2-drake controller-server --port 8800 --overrides params/controllers/walking_rough.yaml \
         --terrain rough &
     pr2-drake run --task 1 --agent examples/pr2_solver/solver.py:TaskSolver --seconds 10
 """

@@ -17,29 +17,29 @@ Why sideways: facing across the path, the bar (0.05 m wide) must pass both soles
 both soles above 0.06 m, more than the robot's highest reliable jump gives (about 0.26 s,
 bench jumping); jumping at 0.4 m/s against the bar brings it to 0.21 s.
 
-Parameters: controllers/moving_bar_agent.yaml (m, s). (No ``from __future__ import
+Parameters: params/agents/moving_bar.yaml (m, s). (No ``from __future__ import
 annotations``: ``yaml_load_typed`` reads the field types.)
 """
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.common.yaml import yaml_load_typed
 from pydrake.systems.framework import BasicVector, Diagram, DiagramBuilder, LeafSystem
 
 from pr2_drake.agents.walk_to_goal import yaw_from_quaternion
 from pr2_drake.lifetime import weak_calc
-from pr2_drake.paths import resolve_user_path
+from pr2_drake.params import Params
 from pr2_drake.ports import BODY_STATE_SIZE, P_WB, QUAT_WB
 
 
 @dataclass
-class MovingBarParams:
-    """See controllers/moving_bar_agent.yaml."""
+class MovingBarParams(Params):
+    """See params/agents/moving_bar.yaml."""
 
+    FILE: ClassVar[str] = "params/agents/moving_bar.yaml"
     apex: float = 0.18
     lateral_speed: float = 0.4
     clear_from: float = 0.040
@@ -50,12 +50,7 @@ class MovingBarParams:
     hip_half_width: float = 0.11
     min_bar_speed: float = 0.5
     period: float = 0.01
-    jump_params: str = "controllers/jumping_bar.yaml"
 
-    @staticmethod
-    def load(path: str = "controllers/moving_bar_agent.yaml") -> "MovingBarParams":
-        return yaml_load_typed(schema=MovingBarParams,
-                               filename=str(resolve_user_path(path, "moving-bar agent")))
 
 
 @dataclass
@@ -154,12 +149,15 @@ class MovingBarAgent(Diagram):
 
     Args:
         priors: the task's priors; ``bar_size`` (length, width, height) [m] gives the width.
-        params: agent YAML (default controllers/moving_bar_agent.yaml).
+        params: agent YAML (default params/agents/moving_bar.yaml).
+        jump_params: overrides of params/controllers/jumping.yaml (task 3's row:
+            params/controllers/jumping_bar.yaml, the jump the clear window was measured with).
     """
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
-    def __init__(self, priors: dict[str, Any] | None = None, params: str | None = None):
+    def __init__(self, priors: dict[str, Any] | None = None, params: str | None = None,
+                 jump_params: str | None = None):
         super().__init__()
         from pr2_drake.controllers.jump_params import JumpParams
         from pr2_drake.controllers.jumping import JumpController
@@ -167,10 +165,8 @@ class MovingBarAgent(Diagram):
 
         priors = priors or {}
         size = priors.get("bar_size", (2.0, 0.05, 0.05))
-        p = MovingBarParams.load(params or "controllers/moving_bar_agent.yaml")
-        jp = JumpParams.load()
-        if p.jump_params:
-            jp = jp.with_overrides(p.jump_params)
+        p = MovingBarParams.load(params)
+        jp = JumpParams.load(overrides=[jump_params] if jump_params else [])
         builder = DiagramBuilder()
         timer = builder.AddNamedSystem("bar_jump_planner", BarJumpPlanner(float(size[1]), p))
         jumper = builder.AddNamedSystem("jumper", JumpController(None, jp))

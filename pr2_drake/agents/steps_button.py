@@ -4,7 +4,7 @@
 walking controller with the arms in the whole-body QP (``WalkingController(arms="effort")``),
 footholds on treads (:class:`pr2_drake.controllers.tread_steps.TreadFootstepPlanner`) and the
 staircase as its terrain model (:func:`pr2_drake.controllers.terrain_model.stairs_from_priors`),
-with the stairs walking overrides (controllers/walking_stairs.yaml):
+with the stairs walking overrides (task 5's row: params/controllers/walking_stairs.yaml):
 
 1. WALK: forward at ``walk_speed`` holding heading 0 (+x, up the steps) and steering sideways
    onto the button's y, towards a standing point ``stand_distance`` before the button's face;
@@ -18,7 +18,7 @@ with the stairs walking overrides (controllers/walking_stairs.yaml):
 
 Only the public observation (``body_state``, ``joint_state``) and the priors (``button_center``,
 ``step_height``, ``step_depth``, ``step_width``, ``step_count``, ``step_start_x``) are used.
-Positions in m, world frame W; parameters: controllers/steps_button_agent.yaml.
+Positions in m, world frame W; parameters: params/agents/steps_button.yaml.
 
 (No ``from __future__ import annotations``: ``yaml_load_typed`` reads the field types.)
 """
@@ -26,22 +26,22 @@ Positions in m, world frame W; parameters: controllers/steps_button_agent.yaml.
 import enum
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
-from pydrake.common.yaml import yaml_load_typed
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from pr2_drake.agents.sequencer import TaskSequencer
 from pr2_drake.agents.walk_to_goal import yaw_from_quaternion
-from pr2_drake.paths import resolve_user_path
+from pr2_drake.params import Params
 from pr2_drake.ports import BODY_STATE_SIZE, JOINT_STATE_SIZE, P_WB, QUAT_WB
 
 
 @dataclass
-class StepsButtonParams:
-    """See controllers/steps_button_agent.yaml (m, s, m/s)."""
+class StepsButtonParams(Params):
+    """See params/agents/steps_button.yaml (m, s, m/s)."""
 
+    FILE: ClassVar[str] = "params/agents/steps_button.yaml"
     period: float = 0.02
     walk_speed: float = 0.25
     slow_radius: float = 0.4
@@ -60,11 +60,6 @@ class StepsButtonParams:
     reach_time: float = 1.5
     hold_time: float = 1.0
 
-    @staticmethod
-    def load(path: str = "controllers/steps_button_agent.yaml") -> "StepsButtonParams":
-        return yaml_load_typed(schema=StepsButtonParams,
-                               filename=str(resolve_user_path(path, "steps-button agent "
-                                                                    "parameters")))
 
 
 class Stage(enum.IntEnum):
@@ -184,12 +179,15 @@ class StepsButtonAgent(Diagram):
 
     Args:
         priors: the task's priors (see the module docstring).
-        params: sequencer YAML (default controllers/steps_button_agent.yaml).
+        params: sequencer YAML (default params/agents/steps_button.yaml).
+        walking_params: overrides of params/controllers/walking.yaml (task 5's row:
+            params/controllers/walking_stairs.yaml).
     """
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
-    def __init__(self, priors: dict[str, Any], params: str | None = None):
+    def __init__(self, priors: dict[str, Any], params: str | None = None,
+                 walking_params: str | None = None):
         super().__init__()
         from pr2_drake.controllers.terrain_model import stairs_from_priors
         from pr2_drake.controllers.tread_steps import TreadFootstepPlanner
@@ -200,8 +198,8 @@ class StepsButtonAgent(Diagram):
         if center is None:
             raise ValueError(f"StepsButtonAgent needs a 'button_center' prior; got "
                              f"{sorted(priors)}")
-        seq_params = StepsButtonParams.load(params or "controllers/steps_button_agent.yaml")
-        wparams = WalkingParams.load().with_overrides("controllers/walking_stairs.yaml")
+        seq_params = StepsButtonParams.load(params)
+        wparams = WalkingParams.load(overrides=[walking_params] if walking_params else [])
         terrain = stairs_from_priors(priors)
         footsteps = TreadFootstepPlanner(wparams.gait, wparams.limits.start_threshold, terrain)
         builder = DiagramBuilder()

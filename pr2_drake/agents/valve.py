@@ -20,7 +20,7 @@ controller with the arms in the whole-body QP (``WalkingController(arms="effort"
 
 Only the public observation (``body_state``, ``joint_state``, ``pick_state``) and the task's
 priors (``valve_center``, ``valve_dimensions``) are used. Angles in rad unless named _deg;
-positions in m, world frame W. Parameters: controllers/valve_agent.yaml.
+positions in m, world frame W. Parameters: params/agents/valve.yaml.
 
 (No ``from __future__ import annotations``: ``yaml_load_typed`` reads the field types.)
 """
@@ -28,24 +28,24 @@ positions in m, world frame W. Parameters: controllers/valve_agent.yaml.
 import enum
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.common.yaml import yaml_load_typed
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from pr2_drake.agents.sequencer import TaskSequencer
 from pr2_drake.agents.walk_to_goal import GoalPlannerParams, goal_velocity, yaw_from_quaternion
 from pr2_drake.grasp import PickState
-from pr2_drake.paths import resolve_user_path
+from pr2_drake.params import Params
 from pr2_drake.ports import BODY_STATE_SIZE, JOINT_STATE_SIZE, P_WB, QUAT_WB
 
 
 @dataclass
-class ValveAgentParams:
-    """See controllers/valve_agent.yaml (m, s, deg where named)."""
+class ValveAgentParams(Params):
+    """See params/agents/valve.yaml (m, s, deg where named)."""
 
+    FILE: ClassVar[str] = "params/agents/valve.yaml"
     period: float = 0.02  # [s] sequencer update period
     stand_distance: float = 0.45  # base to valve axis, horizontal
     approach_radius: float = 0.30  # switch from WALK to APPROACH this close to the point
@@ -66,10 +66,6 @@ class ValveAgentParams:
     pick_timeout: float = 1.5  # [s] without attachment: retry closer to the axis
     hold_time: float = 0.5  # [s] at the end points before the next phase
 
-    @staticmethod
-    def load(path: str = "controllers/valve_agent.yaml") -> "ValveAgentParams":
-        return yaml_load_typed(schema=ValveAgentParams,
-                               filename=str(resolve_user_path(path, "valve agent parameters")))
 
 
 class Stage(enum.IntEnum):
@@ -308,26 +304,32 @@ class ValveAgent(Diagram):
 
     Args:
         priors: the task's priors; needs ``valve_center`` (x, y, z) in world [m].
-        params: sequencer YAML (default controllers/valve_agent.yaml).
+        params: sequencer YAML (default params/agents/valve.yaml).
+        goal_params: goal-planner YAML of the walk (default params/agents/goal_planner.yaml).
+        walking_params: overrides of params/controllers/walking.yaml (default: none).
     """
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
-    def __init__(self, priors: dict[str, Any], params: str | None = None):
+    def __init__(self, priors: dict[str, Any], params: str | None = None,
+                 goal_params: str | None = None, walking_params: str | None = None):
         super().__init__()
         from pr2_drake.controllers.walking import WalkingController
 
         center = priors.get("valve_center")
         if center is None:
             raise ValueError(f"ValveAgent needs a 'valve_center' prior; got {sorted(priors)}")
-        seq_params = ValveAgentParams.load(params or "controllers/valve_agent.yaml")
-        goal_params = GoalPlannerParams.load("controllers/goal_planner.yaml")
+        from pr2_drake.controllers.walking_params import WalkingParams
+
+        seq_params = ValveAgentParams.load(params)
+        goal = GoalPlannerParams.load(goal_params)
+        wparams = (WalkingParams.load(overrides=[walking_params]) if walking_params else None)
         builder = DiagramBuilder()
         dims = priors.get("valve_dimensions") or {}
         rim_radius = 0.5 * float(dims.get("diameter", 0.54))
         seq = builder.AddNamedSystem("sequencer", ValveSequencer(center, rim_radius, seq_params,
-                                                                 goal_params))
-        walker = builder.AddNamedSystem("walker", WalkingController(arms="effort"))
+                                                                 goal))
+        walker = builder.AddNamedSystem("walker", WalkingController(wparams, arms="effort"))
         js = builder.ExportInput(walker.GetInputPort("joint_state"), "joint_state")
         bs = builder.ExportInput(walker.GetInputPort("body_state"), "body_state")
         ps = builder.ExportInput(walker.GetInputPort("pick_state"), "pick_state")

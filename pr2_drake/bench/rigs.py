@@ -48,7 +48,7 @@ from pr2_drake.tasks.regions import rgba
 
 FALL_TILT = 0.8  # [rad] base roll or pitch beyond this = fallen
 PUSH_POINT_B = np.array([0.0, 0.0, 0.20])  # [m] torso centre in base_link
-STAIRS_WALKING = "controllers/walking_stairs.yaml"  # walking overrides of the stairs rig
+STAIRS_WALKING = "params/controllers/walking_stairs.yaml"  # walking overrides of the stairs rig
 FINITE_LENGTH = 3.0  # [m] boxes drawn for a patch that goes on
 PATCH_COLORS = ([0.30, 0.45, 0.75], [0.25, 0.62, 0.68])
 
@@ -258,7 +258,7 @@ class StairsSim(WalkerRig):
             (not to the terrain model); their geometry ids in ``obstacle_ids``.
         start: the robot's start pose.
         params: walking parameters (None: walking.yaml with walking_stairs.yaml).
-        planner_params: :class:`TreadPlannerParams` (None: controllers/tread_planner.yaml).
+        planner_params: :class:`TreadPlannerParams` (None: params/controllers/tread_planner.yaml).
     """
 
     def __init__(self, terrain: PatchTerrain, start: StartPose | None = None,

@@ -8,7 +8,7 @@ Builds its own scene (the testbed's ``scene_builder``): flat ground, ``count`` s
 height and 0.40 m treads up along +x, a 1.2 m floor, the same steps down. The robot starts
 in front of the first step (``repeats`` starts, slightly shifted in x, y and yaw, seeded) and
 walks with the walking controller, :class:`pr2_drake.controllers.tread_steps.
-TreadFootstepPlanner` and the staircase's :class:`PatchTerrain` (controllers/walking_stairs.yaml)
+TreadFootstepPlanner` and the staircase's :class:`PatchTerrain` (params/controllers/walking_stairs.yaml)
 at a constant forward command with heading hold, until its base is past the last step.
 
 The walk holds the start's y (``--lane-gain``, 0.8 1/s as StepsButtonAgent; 0 = off): without
@@ -24,7 +24,7 @@ or toe off an edge, a sole off the side, the DCM outside the support); then the 
 climbed up and down without a fall in all repeats.
 
 What limits step height now: the planner refuses risers over 0.12 m
-(controllers/tread_planner.yaml ``max_step_height``), the highest measured without a fall:
+(params/controllers/tread_planner.yaml ``max_step_height``), the highest measured without a fall:
 ``pr2-drake bench stairs --max-step-height 0.15`` (5 repeats, up then down): 0.05, 0.10 and
 0.12 m, 2 and 4 steps, 0/5 falls each; 0.15 m, 2 and 4 steps, 5/5 falls, all at the first
 riser going up: the swing toe caught on the nosing (8 of 10) or the stance knee at its limit
@@ -80,8 +80,8 @@ def run_stairs(height: float, count: int, start: StartPose, speed: float = 0.25,
                max_step_height: float | None = None) -> tuple[bool, float, float, Fall | None]:
     """Up then down one staircase: (no fall, simulated time [s], real-time factor, where and
     why it failed or None). ``overrides``: a YAML file of walking parameters applied after
-    controllers/walking_stairs.yaml (tuning); ``max_step_height`` [m]: the planner's limit in
-    place of controllers/tread_planner.yaml's (to measure beyond it).
+    params/controllers/walking_stairs.yaml (tuning); ``max_step_height`` [m]: the planner's limit in
+    place of params/controllers/tread_planner.yaml's (to measure beyond it).
 
     Raises:
         ValueError: a riser taller than the planner's limit (the planner refuses it)."""

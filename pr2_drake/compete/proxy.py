@@ -30,7 +30,7 @@ import numpy as np
 from pr2_drake.compete.child import ALLOWED_INPUTS
 from pr2_drake.compete.sandbox import AgentFault, AgentProcess, SandboxLimits
 from pr2_drake.episode import Episode
-from pr2_drake.run import agent_spec
+from pr2_drake.run import agent_params, agent_spec
 from pr2_drake.scenario import Scenario
 
 
@@ -66,7 +66,8 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
     spec, submission = _file_spec(agent_spec(scenario), submission)
     episode = Episode(scenario)
     priors = dict(episode.testbed.scene.priors)
-    kwargs = dict(task=scenario.task, seed=scenario.seed, priors=priors, **scenario.agent_params)
+    kwargs = dict(task=scenario.task, seed=scenario.seed, priors=priors,
+                  **agent_params(scenario))
     agent = AgentProcess(None if submission is None else Path(submission), limits, hide)
     rtts: list[float] = []
     computes: list[float] = []

@@ -37,7 +37,7 @@ _DAQP_OK = (1, 2)
 
 @dataclass
 class MpcParams:
-    """Horizon, weights and limits of the launch MPC (controllers/jumping.yaml ``mpc``)."""
+    """Horizon, weights and limits of the launch MPC (params/controllers/jumping.yaml ``mpc``)."""
 
     horizon: int = 12  # knots
     dt: float = 0.025  # [s] per knot

@@ -1,22 +1,22 @@
-"""Parameters of the jump controller, loaded from controllers/jumping.yaml.
+"""Parameters of the jump controller, loaded from params/controllers/jumping.yaml.
 
 Units: m, s, N; heights are CoM heights above the soles. (No ``from __future__ import
 annotations``: ``yaml_load_typed`` reads the field types.)
 """
 
 from dataclasses import dataclass, field
-
-from pydrake.common.yaml import yaml_load_typed
+from typing import ClassVar
 
 from pr2_drake.controllers.centroidal_mpc import MpcParams
 from pr2_drake.controllers.walking_params import TaskGains
-from pr2_drake.paths import resolve_user_path
+from pr2_drake.params import Params
 
 
 @dataclass
-class JumpParams:
-    """See controllers/jumping.yaml."""
+class JumpParams(Params):
+    """See params/controllers/jumping.yaml."""
 
+    FILE: ClassVar[str] = "params/controllers/jumping.yaml"
     crouch_time: float = 0.5
     crouch_hold: float = 0.1
     crouch_height: float = 0.42
@@ -49,23 +49,6 @@ class JumpParams:
     soles_rot: TaskGains = field(default_factory=lambda: TaskGains(300.0, 35.0, 100.0))
     load_ramp: float = 0.02
     mpc: MpcParams = field(default_factory=MpcParams)
-
-    @staticmethod
-    def load(path: str = "controllers/jumping.yaml") -> "JumpParams":
-        filename = resolve_user_path(path, "jump controller parameters")
-        p = yaml_load_typed(schema=JumpParams, filename=str(filename))
-        p.check()
-        return p
-
-    def with_overrides(self, path: str) -> "JumpParams":
-        """A copy with the entries of a (partial) YAML file replacing these."""
-        import copy
-
-        filename = resolve_user_path(path, "jump controller parameter overrides")
-        p = yaml_load_typed(schema=JumpParams, filename=str(filename),
-                            defaults=copy.deepcopy(self))
-        p.check()
-        return p
 
     def check(self) -> None:
         if not self.crouch_height < self.takeoff_height:

@@ -82,7 +82,7 @@ class JumpPlanner:
     """Phases and plans of a jump (see the module docstring).
 
     Args:
-        params: jump parameters (controllers/jumping.yaml).
+        params: jump parameters (params/controllers/jumping.yaml).
         model: the controller's robot model (at the measured state each tick).
         stand_height: CoM height above the soles when standing [m] (walking parameters).
         fz_max: per contact point normal-force bound of the QP in contact [N].

@@ -91,7 +91,7 @@ class JumpCore:
     Args:
         core: the whole-body controller (its model, QP, contact and posture tasks are shared;
             arms in position mode).
-        params: jump parameters (None: controllers/jumping.yaml).
+        params: jump parameters (None: params/controllers/jumping.yaml).
     """
 
     def __init__(self, core: WholeBodyController, params: JumpParams | None = None):
@@ -174,8 +174,8 @@ class JumpController(WalkingController):
     """The walking controller with jumps (see the module docstring).
 
     Args:
-        params: walking parameters (WalkingParams, YAML path or None: controllers/walking.yaml).
-        jump_params: jump parameters (JumpParams, YAML path or None: controllers/jumping.yaml).
+        params: walking parameters (WalkingParams, YAML path or None: params/controllers/walking.yaml).
+        jump_params: jump parameters (JumpParams, YAML path or None: params/controllers/jumping.yaml).
         footsteps, terrain: as for :class:`WalkingController`.
     """
 
@@ -186,7 +186,7 @@ class JumpController(WalkingController):
                  footsteps: FootstepPlanner | None = None, terrain: FlatTerrain | None = None):
         super().__init__(params, footsteps, terrain, arms="position")
         if jump_params is None or isinstance(jump_params, str):
-            jump_params = JumpParams.load(jump_params or "controllers/jumping.yaml")
+            jump_params = JumpParams.load(jump_params or "params/controllers/jumping.yaml")
         self.jump = JumpCore(self.core, jump_params)
         self._jump_port = self.DeclareVectorInputPort(JUMP_PORT, 4)
         self._jstate = self.DeclareDiscreteState(len(JUMP_STATUS_FIELDS))

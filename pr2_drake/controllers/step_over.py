@@ -96,7 +96,7 @@ class StepOverFootstepPlanner(FootstepPlanner):
 
     Args:
         base: the footstep planner wrapped (None: :class:`VelocityFootstepPlanner` with
-            controllers/walking.yaml's gait and start threshold).
+            params/controllers/walking.yaml's gait and start threshold).
         obstacles: the boxes to step over.
         clearance: [m] the swing sole passes this far above an obstacle's top.
         margin: [m] heel, toe and sides of a standing sole stay this far from an obstacle.

@@ -20,7 +20,7 @@ clear of an edge. A larger ``approach_margin`` leaves the toe of the sole that s
 riser room to rise before it moves on; it also lengthens the stride over the riser, and 0.07 m
 fell more often at 0.12 m risers than 0.03 m (the value in tread_planner.yaml, = edge_margin).
 
-The CoM height on stairs (controllers/walking_stairs.yaml, :class:`pr2_drake.controllers.gait.
+The CoM height on stairs (params/controllers/walking_stairs.yaml, :class:`pr2_drake.controllers.gait.
 GaitPlanner`): the LIPM and the DCM stay horizontal, with one constant omega =
 sqrt(g / com_height) (com_height 0.54 m above the stance soles); footholds enter the DCM laws by
 their xy only. The height is a separate reference tracked by the QP's CoM-z task: com_height
@@ -36,21 +36,21 @@ horizontal motion. What the constant omega gets wrong while the height changes i
 error that the feedback on the measured DCM corrects: the ankle term in single support, the
 step adjustment of the swing target every tick, and the weight shift in double support.
 
-Parameters: controllers/tread_planner.yaml. Units m, rad; frames W, sole S (x forward).
+Parameters: params/controllers/tread_planner.yaml. Units m, rad; frames W, sole S (x forward).
 
 (No ``from __future__ import annotations``: ``yaml_load_typed`` reads the field types.)
 """
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
-from pydrake.common.yaml import yaml_load_typed
 
 from pr2_drake.controllers.footsteps import FootstepPlanner, VelocityFootstepPlanner
 from pr2_drake.controllers.terrain_model import LEVEL_TOLERANCE, PatchTerrain
 from pr2_drake.controllers.walking_params import GaitParams
-from pr2_drake.paths import resolve_user_path
+from pr2_drake.params import Params
 
 #: [m] a swing sole within this of the stance sole along the heading stands beside it.
 BESIDE = 0.05
@@ -59,9 +59,10 @@ LEVEL_CHANGE_SLACK = 0.03
 
 
 @dataclass
-class TreadPlannerParams:
-    """See controllers/tread_planner.yaml (m)."""
+class TreadPlannerParams(Params):
+    """See params/controllers/tread_planner.yaml (m)."""
 
+    FILE: ClassVar[str] = "params/controllers/tread_planner.yaml"
     edge_margin: float = 0.03  # heel and toe stay this far from an edge
     clearance: float = 0.05  # swing soles clear the highest ground on their way by this
     max_step_height: float = 0.12  # taller risers are refused
@@ -69,10 +70,6 @@ class TreadPlannerParams:
     approach_margin: float = 0.03  # the sole stopping short of a riser keeps its toe (heel,
     # going down) this far from the edge: room for the toe to rise before it moves on
 
-    @staticmethod
-    def load(path: str = "controllers/tread_planner.yaml") -> "TreadPlannerParams":
-        return yaml_load_typed(schema=TreadPlannerParams,
-                               filename=str(resolve_user_path(path, "tread planner parameters")))
 
 
 class TreadFootstepPlanner(FootstepPlanner):
@@ -82,7 +79,7 @@ class TreadFootstepPlanner(FootstepPlanner):
         gait: step period, width and limits (the stride limit of forward moves).
         start_threshold: |command| above this starts walking [m/s, rad/s].
         terrain: the terrain (its ``edge_margin`` and ``clearance`` are set from ``params``).
-        params: planner parameters (None: controllers/tread_planner.yaml).
+        params: planner parameters (None: params/controllers/tread_planner.yaml).
 
     Raises:
         ValueError: the terrain has a riser taller than ``params.max_step_height``.

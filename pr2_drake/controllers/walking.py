@@ -3,7 +3,7 @@
 Input ports:
     ``velocity_command`` (3): vx [m/s], vy [m/s], yaw_rate [rad/s] in the robot's heading frame.
         Unconnected = stand still. NaN/inf or a wrong size raise ValueError naming the port;
-        values beyond ``limits`` in controllers/walking.yaml are clipped to them.
+        values beyond ``limits`` in params/controllers/walking.yaml are clipped to them.
     ``joint_state`` (54), ``body_state`` (13): the testbed's observations (pr2_drake.ports).
     With ``arms="effort"`` only:
     ``hand_targets`` (abstract, a list [left, right]): per hand None or a desired hand-sphere
@@ -122,7 +122,7 @@ class WalkingController(LeafSystem):
     """The built-in walking controller (see the module docstring for ports and units).
 
     Args:
-        params: a WalkingParams, a path to a YAML file, or None for controllers/walking.yaml.
+        params: a WalkingParams, a path to a YAML file, or None for params/controllers/walking.yaml.
         footsteps: footstep planner (None: from the velocity command).
         terrain: terrain model of the footholds (None: flat ground).
         arms: "position" (arms held by another block) or "effort" (the QP drives them).

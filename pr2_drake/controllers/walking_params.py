@@ -1,4 +1,4 @@
-"""Parameters of the walking controller, loaded from controllers/walking.yaml.
+"""Parameters of the walking controller, loaded from params/controllers/walking.yaml.
 
 Units: metres, seconds, radians, newtons; gains as stiffness [1/s^2] and damping [1/s] of the
 task-space acceleration laws ``a_d = kp (x_d - x) + kd (v_d - v) + a_ff``.
@@ -7,10 +7,9 @@ task-space acceleration laws ``a_d = kp (x_d - x) + kd (v_d - v) + a_ff``.
 """
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
-from pydrake.common.yaml import yaml_load_typed
-
-from pr2_drake.paths import resolve_user_path
+from pr2_drake.params import Params
 
 
 @dataclass
@@ -182,9 +181,10 @@ class ArmParams:
 
 
 @dataclass
-class WalkingParams:
-    """All walking-controller parameters (see controllers/walking.yaml)."""
+class WalkingParams(Params):
+    """All walking-controller parameters (see params/controllers/walking.yaml)."""
 
+    FILE: ClassVar[str] = "params/controllers/walking.yaml"
     control_period: float = 0.004  # [s] QP rate; torques are held in between
     gait: GaitParams = field(default_factory=GaitParams)
     limits: CommandLimits = field(default_factory=CommandLimits)
@@ -201,24 +201,6 @@ class WalkingParams:
     arm_stiffness: float = 60.0
     arm_damping: float = 3.0
     arms: ArmParams = field(default_factory=lambda: ArmParams())
-
-    @staticmethod
-    def load(path: str = "controllers/walking.yaml") -> "WalkingParams":
-        """Read a parameter file (relative paths also looked up in the data root)."""
-        filename = resolve_user_path(path, "walking controller parameters")
-        params = yaml_load_typed(schema=WalkingParams, filename=str(filename))
-        params.check()
-        return params
-
-    def with_overrides(self, path: str) -> "WalkingParams":
-        """A copy of these parameters with the entries of a (partial) YAML file replacing them."""
-        import copy
-
-        filename = resolve_user_path(path, "walking controller parameter overrides")
-        params = yaml_load_typed(schema=WalkingParams, filename=str(filename),
-                                 defaults=copy.deepcopy(self))
-        params.check()
-        return params
 
     def check(self) -> None:
         """Raise ValueError on inconsistent values."""

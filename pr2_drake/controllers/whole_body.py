@@ -132,7 +132,7 @@ class WholeBodyController:
     """Planner + tasks + QP (see the module docstring).
 
     Args:
-        params: walking parameters (None: controllers/walking.yaml).
+        params: walking parameters (None: params/controllers/walking.yaml).
         footsteps: footstep planner (None: from the velocity command).
         terrain: terrain model of the footholds (None: flat).
         arms: "position" or "effort" (see the module docstring).

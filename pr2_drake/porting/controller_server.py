@@ -29,7 +29,7 @@ Time: the controller needs the simulation time. A request's ``time`` field, when
 it; otherwise the server counts the connection's valid requests: the n-th (from 0) is at
 ``n * request_period`` (default 0.001 s, one physics step: the original's solvers call the
 server once per step). The control law runs every ``control_period`` of that time (4 ms,
-controllers/walking.yaml) and the torques are held in between. A time earlier than the last
+params/controllers/walking.yaml) and the torques are held in between. A time earlier than the last
 one restarts the controller (a new episode).
 
 Sessions: one client at a time; each connection is one episode (the controller restarts when a
@@ -83,7 +83,7 @@ class ControllerServerConfig:
 
     Attributes:
         walking: walking parameters (YAML; relative paths also in the data root).
-        overrides: a partial walking YAML applied on top (e.g. controllers/walking_rough.yaml).
+        overrides: a partial walking YAML applied on top (e.g. params/controllers/walking_rough.yaml).
         terrain: footholds: "flat", or "rough" (unknown stones: the swing sole aims
             ``rough_drop`` below the stance sole and touches down on contact, as the task-1
             reference agent does).
@@ -93,11 +93,11 @@ class ControllerServerConfig:
         request_period: [s] simulated time between two requests without a ``time`` field.
     """
 
-    walking: str = "controllers/walking.yaml"
+    walking: str = "params/controllers/walking.yaml"
     overrides: str | None = None
     terrain: str = "flat"
     rough_drop: float = 0.025
-    jumping: str = "controllers/jumping.yaml"
+    jumping: str = "params/controllers/jumping.yaml"
     jump_apex: float = 0.18
     request_period: float = 0.001
 

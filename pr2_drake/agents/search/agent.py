@@ -3,7 +3,7 @@ the coffee table.
 
 :class:`ObjectSearchAgent` is a Diagram of a sequencer (:class:`ObjectSearchSequencer`) and the
 walking controller with the arms in the whole-body QP (``WalkingController(arms="effort")``,
-its QP at 125 Hz: controllers/walking_search.yaml), built like
+its QP at 125 Hz: params/controllers/walking_search.yaml, task 6's row), built like
 :class:`pr2_drake.agents.valve.ValveAgent`. The sequencer is made of the search parts, each
 replaceable on its own (constructor arguments of :class:`ObjectSearchSequencer`):
 
@@ -53,7 +53,7 @@ with a crash at build time. Only the public observation (``body_state``, ``joint
 ``pick_state``, ``rgbd``), the priors (``instruction``, ``object_models``,
 ``coffee_table_center``, ``coffee_table_size``) and the task's public scene description
 (tasks/6_object_search.yaml: walls, furniture, camera) are used; no simulator ground truth.
-Parameters: controllers/search_agent.yaml. Positions in m, world frame W.
+Parameters: params/agents/search.yaml. Positions in m, world frame W.
 
 (No ``from __future__ import annotations``: ``yaml_load_typed`` reads the field types.)
 """
@@ -61,11 +61,10 @@ Parameters: controllers/search_agent.yaml. Positions in m, world frame W.
 import enum
 import math
 from dataclasses import dataclass, field
-from typing import Any, List, Optional
+from typing import Any, ClassVar, List, Optional
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.common.yaml import yaml_load_typed
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from pr2_drake.agents.search.instruction import Instruction, InstructionError
@@ -81,18 +80,17 @@ from pr2_drake.agents.walk_to_goal import yaw_from_quaternion
 from pr2_drake.camera import RgbdFrame
 from pr2_drake.grasp import PickState
 from pr2_drake.lifetime import weak_calc
-from pr2_drake.paths import resolve_user_path
+from pr2_drake.params import Params
 from pr2_drake.ports import BODY_STATE_SIZE, JOINT_STATE_SIZE, P_WB, QUAT_WB
 
-DEFAULT_PARAMS = "controllers/search_agent.yaml"
-DEFAULT_WALKING = "controllers/walking_search.yaml"  # overrides of controllers/walking.yaml
 HANDS = ("left_hand", "right_hand")
 
 
 @dataclass
-class SearchAgentParams:
-    """See controllers/search_agent.yaml (m, s, deg where named)."""
+class SearchAgentParams(Params):
+    """See params/agents/search.yaml (m, s, deg where named)."""
 
+    FILE: ClassVar[str] = "params/agents/search.yaml"
     period: float = 0.02
     look_distance: float = 0.55
     look_yaws_deg: List[float] = field(default_factory=lambda: [0.0, 30.0, -30.0])
@@ -134,10 +132,6 @@ class SearchAgentParams:
     back_speed: float = 0.10
     back_time: float = 2.0
 
-    @staticmethod
-    def load(path: str = DEFAULT_PARAMS) -> "SearchAgentParams":
-        return yaml_load_typed(schema=SearchAgentParams,
-                               filename=str(resolve_user_path(path, "search agent parameters")))
 
 
 class Stage(enum.IntEnum):
@@ -783,11 +777,12 @@ class ObjectSearchAgent(Diagram):
 
     Args:
         priors: the task's priors (``instruction``, ``object_models``, ``coffee_table_*``).
-        params: sequencer YAML (default controllers/search_agent.yaml).
+        params: sequencer YAML (default params/agents/search.yaml).
         parser: replaces the rule-based :class:`InstructionParser` (``parse(sentence)``).
         detector: replaces the :class:`ObjectDetector` (``find(rgb, depth, X_WC, target)``).
-        walking_params: overrides of controllers/walking.yaml for the walking controller
-            (default controllers/walking_search.yaml: the QP at 125 Hz).
+        walking_params: overrides of params/controllers/walking.yaml for the walking
+            controller (task 6's row: params/controllers/walking_search.yaml, the QP at
+            125 Hz).
     """
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
@@ -825,12 +820,12 @@ class ObjectSearchAgent(Diagram):
         height = models[instruction.target].height if (
             instruction and instruction.target in models) else 0.1
         seq = ObjectSearchSequencer(instruction, scene, detector, height,
-                                    SearchAgentParams.load(params or DEFAULT_PARAMS),
+                                    SearchAgentParams.load(params),
                                     NavigationParams.load(), HeadCameraKinematics(), error,
                                     (K.height, K.width))
         builder = DiagramBuilder()
         builder.AddNamedSystem("sequencer", seq)
-        wparams = WalkingParams.load().with_overrides(walking_params or DEFAULT_WALKING)
+        wparams = WalkingParams.load(overrides=[walking_params] if walking_params else [])
         walker = builder.AddNamedSystem("walker", WalkingController(wparams, arms="effort"))
         js = builder.ExportInput(walker.GetInputPort("joint_state"), "joint_state")
         bs = builder.ExportInput(walker.GetInputPort("body_state"), "body_state")
