@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from pr2_drake.controllers.centroidal_mpc import CentroidalMpc, leg_force_limits
+from pr2_drake.controllers.planning.centroidal_mpc import CentroidalMpc, leg_force_limits
 from pr2_drake.controllers.jump_params import JumpParams
 from pr2_drake.controllers.jumping import JumpController, check_jump_command
-from pr2_drake.controllers.wb_model import WholeBodyModel
+from pr2_drake.controllers.model import WholeBodyModel
 
 
 def _launch_problem(apex: float):

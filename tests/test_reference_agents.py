@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from pr2_drake.agents.walk_to_goal import RockyRoadAgent, SlopeAgent
-from pr2_drake.controllers.footsteps import FlatTerrain, RoughTerrain, SlopeTerrain
-from pr2_drake.controllers.swing import SwingTrajectory
+from pr2_drake.controllers.planning.terrain import FlatTerrain, RoughTerrain, SlopeTerrain
+from pr2_drake.controllers.planning.swing import SwingTrajectory
 from pr2_drake.controllers.walking_params import WalkingParams
 from pr2_drake.episode import Episode, wire_system
 from pr2_drake.ports import P_WB

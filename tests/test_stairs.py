@@ -1,5 +1,5 @@
 """Footholds with height: the planar-patch terrain, footholds on treads, the swing over an edge,
-and one 0.10 m step climbed in closed loop (pr2_drake.controllers.{terrain_model,tread_steps},
+and one 0.10 m step climbed in closed loop (pr2_drake.controllers.planning.{terrain,tread_steps},
 pr2_drake.bench.stairs)."""
 
 from __future__ import annotations
@@ -9,14 +9,14 @@ import pytest
 
 from pr2_drake.bench.rigs import StairsSim
 from pr2_drake.bench.stairs import LANE_GAIN
-from pr2_drake.controllers.swing import SwingTrajectory
-from pr2_drake.controllers.terrain_model import (
+from pr2_drake.controllers.planning.swing import SwingTrajectory
+from pr2_drake.controllers.planning.terrain import (
     PatchTerrain,
     PlanarPatch,
     stairs_from_priors,
     stairs_terrain,
 )
-from pr2_drake.controllers.tread_steps import (
+from pr2_drake.controllers.planning.tread_steps import (
     BESIDE,
     TreadFootstepPlanner,
     TreadPlannerParams,

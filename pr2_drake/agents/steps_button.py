@@ -2,8 +2,8 @@
 
 :class:`StepsButtonAgent` is a Diagram of a sequencer (:class:`StepsButtonSequencer`) and the
 walking controller with the arms in the whole-body QP (``WalkingController(arms="effort")``),
-footholds on treads (:class:`pr2_drake.controllers.tread_steps.TreadFootstepPlanner`) and the
-staircase as its terrain model (:func:`pr2_drake.controllers.terrain_model.stairs_from_priors`),
+footholds on treads (:class:`pr2_drake.controllers.planning.tread_steps.TreadFootstepPlanner`) and the
+staircase as its terrain model (:func:`pr2_drake.controllers.planning.terrain.stairs_from_priors`),
 with the stairs walking overrides (task 5's row: params/controllers/walking_stairs.yaml):
 
 1. WALK: forward at ``walk_speed`` holding heading 0 (+x, up the steps) and steering sideways
@@ -87,7 +87,7 @@ class StepsButtonSequencer(TaskSequencer):
 
     def __init__(self, button_center, params: StepsButtonParams | None = None):
         super().__init__()
-        from pr2_drake.controllers.wb_model import WholeBodyModel
+        from pr2_drake.controllers.model import WholeBodyModel
 
         self.button = np.asarray(button_center, dtype=float).reshape(-1)
         if self.button.shape != (3,) or not np.all(np.isfinite(self.button)):
@@ -189,8 +189,8 @@ class StepsButtonAgent(Diagram):
     def __init__(self, priors: dict[str, Any], params: str | None = None,
                  walking_params: str | None = None):
         super().__init__()
-        from pr2_drake.controllers.terrain_model import stairs_from_priors
-        from pr2_drake.controllers.tread_steps import TreadFootstepPlanner
+        from pr2_drake.controllers.planning.terrain import stairs_from_priors
+        from pr2_drake.controllers.planning.tread_steps import TreadFootstepPlanner
         from pr2_drake.controllers.walking import WalkingController
         from pr2_drake.controllers.walking_params import WalkingParams
 

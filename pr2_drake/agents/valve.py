@@ -100,7 +100,7 @@ class ValveSequencer(TaskSequencer):
     def __init__(self, center, rim_radius: float, params: ValveAgentParams | None = None,
                  goal_params: GoalPlannerParams | None = None):
         super().__init__()
-        from pr2_drake.controllers.wb_model import WholeBodyModel
+        from pr2_drake.controllers.model import WholeBodyModel
 
         self.center = np.asarray(center, dtype=float).reshape(-1)
         if self.center.shape != (3,) or not np.all(np.isfinite(self.center)):

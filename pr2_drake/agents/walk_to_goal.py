@@ -152,7 +152,7 @@ class SlopeAgent(WalkToGoalAgent):
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
     def make_terrain(self, priors, goal):
-        from pr2_drake.controllers.footsteps import SlopeTerrain
+        from pr2_drake.controllers.planning.terrain import SlopeTerrain
 
         angle = priors.get("slope_angle_deg")
         if angle is None:
@@ -171,6 +171,6 @@ class RockyRoadAgent(WalkToGoalAgent):
     LANDING_DROP = 0.025
 
     def make_terrain(self, priors, goal):
-        from pr2_drake.controllers.footsteps import RoughTerrain
+        from pr2_drake.controllers.planning.terrain import RoughTerrain
 
         return RoughTerrain(self.LANDING_DROP)

@@ -33,8 +33,8 @@ from pr2_drake.bench.stair_falls import SNAPSHOTS, Fall, diagnose, snapshot, whe
 from pr2_drake.controllers.jump_params import JumpParams
 from pr2_drake.controllers.jumping import JumpController
 from pr2_drake.controllers.posture import ArmPosture
-from pr2_drake.controllers.terrain_model import PatchTerrain
-from pr2_drake.controllers.tread_steps import TreadFootstepPlanner
+from pr2_drake.controllers.planning.terrain import PatchTerrain
+from pr2_drake.controllers.planning.tread_steps import TreadFootstepPlanner
 from pr2_drake.controllers.walking import WalkingController
 from pr2_drake.controllers.walking_params import WalkingParams
 from pr2_drake.camera import CameraSettings
@@ -254,7 +254,7 @@ class StairsSim(WalkerRig):
     Args:
         terrain: the ground (its level patches become boxes).
         footsteps: the footstep planner (None: :class:`TreadFootstepPlanner` on ``terrain``).
-        obstacles: :class:`pr2_drake.controllers.step_over.Obstacle` boxes added to the scene
+        obstacles: :class:`pr2_drake.controllers.planning.step_over.Obstacle` boxes added to the scene
             (not to the terrain model); their geometry ids in ``obstacle_ids``.
         start: the robot's start pose.
         params: walking parameters (None: walking.yaml with walking_stairs.yaml).

@@ -7,7 +7,7 @@
 Builds its own scene (the testbed's ``scene_builder``): flat ground, ``count`` steps of one riser
 height and 0.40 m treads up along +x, a 1.2 m floor, the same steps down. The robot starts
 in front of the first step (``repeats`` starts, slightly shifted in x, y and yaw, seeded) and
-walks with the walking controller, :class:`pr2_drake.controllers.tread_steps.
+walks with the walking controller, :class:`pr2_drake.controllers.planning.tread_steps.
 TreadFootstepPlanner` and the staircase's :class:`PatchTerrain` (params/controllers/walking_stairs.yaml)
 at a constant forward command with heading hold, until its base is past the last step.
 
@@ -46,8 +46,8 @@ import numpy as np
 
 from pr2_drake.bench.rigs import STAIRS_WALKING, StairsSim
 from pr2_drake.bench.stair_falls import TREAD, Fall
-from pr2_drake.controllers.terrain_model import stairs_terrain
-from pr2_drake.controllers.tread_steps import TreadPlannerParams
+from pr2_drake.controllers.planning.terrain import stairs_terrain
+from pr2_drake.controllers.planning.tread_steps import TreadPlannerParams
 from pr2_drake.controllers.walking_params import WalkingParams
 from pr2_drake.scene import StartPose
 

@@ -203,7 +203,7 @@ def profile_split(seconds: float) -> dict[str, float]:
             walker += v[3]
         if filename.endswith("actuation.py") and func.startswith("_calc"):
             adapter += v[3]
-        if filename.endswith("wbqp.py") and func == "solve":
+        if filename.endswith("tracking/qp.py") and func == "solve":
             qp += v[3]
     del total
     rest = top - walker - adapter

@@ -66,8 +66,7 @@ def run_sandboxed_episode(scenario: Scenario, *, submission: str | Path | None =
     spec, submission = _file_spec(agent_spec(scenario), submission)
     episode = Episode(scenario)
     priors = dict(episode.testbed.scene.priors)
-    kwargs = dict(task=scenario.task, seed=scenario.seed, priors=priors,
-                  **agent_params(scenario))
+    kwargs = dict(task=scenario.task, seed=scenario.seed, priors=priors, **agent_params(scenario))
     agent = AgentProcess(None if submission is None else Path(submission), limits, hide)
     rtts: list[float] = []
     computes: list[float] = []

@@ -7,8 +7,8 @@ annotations``: ``yaml_load_typed`` reads the field types.)
 from dataclasses import dataclass, field
 from typing import ClassVar
 
-from pr2_drake.controllers.centroidal_mpc import MpcParams
-from pr2_drake.controllers.walking_params import TaskGains
+from pr2_drake.controllers.planning.centroidal_mpc import MpcParams
+from pr2_drake.controllers.walking_params import ObjectiveGains
 from pr2_drake.params import Params
 
 
@@ -35,18 +35,18 @@ class JumpParams(Params):
     max_apex: float = 0.30
     max_speed: float = 1.0
     min_lead: float = 0.2
-    com: TaskGains = field(default_factory=lambda: TaskGains(100.0, 20.0, 300.0))
+    com: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(100.0, 20.0, 300.0))
     com_launch_weight: float = 1000.0
-    landing: TaskGains = field(default_factory=lambda: TaskGains(120.0, 30.0, 300.0))
-    landing_xy: TaskGains = field(default_factory=lambda: TaskGains(30.0, 10.0, 300.0))
+    landing: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(120.0, 30.0, 300.0))
+    landing_xy: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(30.0, 10.0, 300.0))
     joint_limit_horizon: float = 0.02
-    angular_momentum: TaskGains = field(default_factory=lambda: TaskGains(0.0, 10.0, 10.0))
+    angular_momentum: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(0.0, 10.0, 10.0))
     launch_angular_momentum_weight: float = 100.0
     launch_pelvis_scale: float = 0.03
     launch_cop_back: float = 0.03
     launch_lean_max: float = 0.04
-    soles: TaskGains = field(default_factory=lambda: TaskGains(600.0, 50.0, 1000.0))
-    soles_rot: TaskGains = field(default_factory=lambda: TaskGains(300.0, 35.0, 100.0))
+    soles: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(600.0, 50.0, 1000.0))
+    soles_rot: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(300.0, 35.0, 100.0))
     load_ramp: float = 0.02
     mpc: MpcParams = field(default_factory=MpcParams)
 

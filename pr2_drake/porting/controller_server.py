@@ -117,7 +117,7 @@ class WalkingSession:
     and returns the reply (see the module docstring). Build once, :meth:`reset` per episode."""
 
     def __init__(self, config: ControllerServerConfig | None = None):
-        from pr2_drake.controllers.footsteps import RoughTerrain
+        from pr2_drake.controllers.planning.terrain import RoughTerrain
         from pr2_drake.controllers.jumping import JumpController
         from pr2_drake.controllers.walking_params import WalkingParams
 

@@ -250,7 +250,7 @@ class ObjectSearchSequencer(TaskSequencer):
                  nav: NavigationParams | None = None, camera_kinematics=None,
                  error: str = "", frame_shape=(480, 640)):
         super().__init__()
-        from pr2_drake.controllers.wb_model import WholeBodyModel
+        from pr2_drake.controllers.model import WholeBodyModel
 
         self.p = params or SearchAgentParams()
         self.nav = nav or NavigationParams()

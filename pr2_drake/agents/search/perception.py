@@ -98,9 +98,9 @@ class HeadCameraKinematics:
 
     def camera_pose_from_obs(self, obs: dict) -> RigidTransform:
         """X_WC from a PR2 observation dictionary (``obs["agent"]``)."""
-        from pr2_drake.observation import state_vectors_from_obs
+        from pr2_drake.observation import state_vectors
 
-        joint_state, body_state = state_vectors_from_obs(obs)
+        joint_state, body_state = state_vectors(obs)
         return self.camera_pose(body_state, joint_state)
 
 

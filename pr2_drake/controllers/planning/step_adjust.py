@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pr2_drake.controllers.footsteps import SIDE_SIGN
+from pr2_drake.controllers.planning.footsteps import SIDE_SIGN
 from pr2_drake.controllers.walking_params import GaitParams
 
 

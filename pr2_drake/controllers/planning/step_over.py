@@ -1,8 +1,8 @@
 """Stepping over low obstacles: footholds kept off them, and high swings across them.
 
 :class:`StepOverFootstepPlanner` wraps a footstep planner (by default the velocity one) for the
-gait planner (:class:`pr2_drake.controllers.gait.GaitPlanner`, through the
-:class:`pr2_drake.controllers.footsteps.FootstepPlanner` interface). Given the obstacles (boxes
+gait planner (:class:`pr2_drake.controllers.planning.gait.GaitPlanner`, through the
+:class:`pr2_drake.controllers.planning.footsteps.FootstepPlanner` interface). Given the obstacles (boxes
 on the ground, :class:`Obstacle`), it
 
 - moves each planned foothold along its sole's x axis until heel and toe (plus ``margin``) and
@@ -14,7 +14,7 @@ on the ground, :class:`Obstacle`), it
   (:meth:`constrain`);
 - asks for a high swing (:meth:`swing_clearance`) when the swing sole's footprint, swept from
   lift-off to landing, passes over an obstacle: the sole lifts to the obstacle's top plus
-  ``clearance``, moves, then lowers (:class:`pr2_drake.controllers.swing.SwingTrajectory`,
+  ``clearance``, moves, then lowers (:class:`pr2_drake.controllers.planning.swing.SwingTrajectory`,
   ``gait.swing_clear_lift`` / ``swing_clear_lower``).
 
 ``swing_apex`` (None: off) asks for that high swing on every step, ``swing_apex`` [m] above the
@@ -38,7 +38,7 @@ from typing import Sequence
 
 import numpy as np
 
-from pr2_drake.controllers.footsteps import FootstepPlanner, VelocityFootstepPlanner
+from pr2_drake.controllers.planning.footsteps import FootstepPlanner, VelocityFootstepPlanner
 from pr2_drake.controllers.walking_params import WalkingParams
 
 #: [m] spacing of the footprint samples along a swing path.

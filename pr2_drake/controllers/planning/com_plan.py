@@ -13,7 +13,7 @@ import numpy as np
 from pydrake.planning import ZmpPlanner
 from pydrake.trajectories import PiecewisePolynomial
 
-from pr2_drake.controllers.footsteps import rot2
+from pr2_drake.controllers.frames import rot2
 from pr2_drake.controllers.walking_params import GaitParams
 
 

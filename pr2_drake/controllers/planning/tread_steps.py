@@ -1,6 +1,6 @@
 """Footholds on treads: velocity footsteps moved so that heel and toe stand on one level.
 
-:class:`TreadFootstepPlanner` (a :class:`pr2_drake.controllers.footsteps.FootstepPlanner`) asks
+:class:`TreadFootstepPlanner` (a :class:`pr2_drake.controllers.planning.footsteps.FootstepPlanner`) asks
 the velocity planner for each next footstep, then, when that sole (plus ``edge_margin`` beyond
 heel and toe) would straddle an edge of the terrain (:class:`pr2_drake.controllers.
 terrain_model.PatchTerrain`), moves it along the sole's x axis: back, so that the toe stops
@@ -20,10 +20,10 @@ clear of an edge. A larger ``approach_margin`` leaves the toe of the sole that s
 riser room to rise before it moves on; it also lengthens the stride over the riser, and 0.07 m
 fell more often at 0.12 m risers than 0.03 m (the value in tread_planner.yaml, = edge_margin).
 
-The CoM height on stairs (params/controllers/walking_stairs.yaml, :class:`pr2_drake.controllers.gait.
+The CoM height on stairs (params/controllers/walking_stairs.yaml, :class:`pr2_drake.controllers.planning.gait.
 GaitPlanner`): the LIPM and the DCM stay horizontal, with one constant omega =
 sqrt(g / com_height) (com_height 0.54 m above the stance soles); footholds enter the DCM laws by
-their xy only. The height is a separate reference tracked by the QP's CoM-z task: com_height
+their xy only. The height is a separate reference tracked by the QP's CoM-z objective: com_height
 above the mean foothold height in double support, above the stance sole in single support
 (``com_height_over_stance``), above the lower tread before and during a step-down
 (``com_height_step_down``: the CoM descends before the swing sole has to reach down, so the
@@ -47,8 +47,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from pr2_drake.controllers.footsteps import FootstepPlanner, VelocityFootstepPlanner
-from pr2_drake.controllers.terrain_model import LEVEL_TOLERANCE, PatchTerrain
+from pr2_drake.controllers.planning.footsteps import FootstepPlanner, VelocityFootstepPlanner
+from pr2_drake.controllers.planning.terrain import LEVEL_TOLERANCE, PatchTerrain
 from pr2_drake.controllers.walking_params import GaitParams
 from pr2_drake.params import Params
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pr2_drake.controllers.footsteps import wrap
+from pr2_drake.controllers.frames import wrap
 
 
 def _quintic(tau: float):

@@ -1,45 +1,21 @@
-"""A jump's plan and the two tracking tasks it adds to the whole-body QP.
+"""A jump's plan and the two tracking objectives it adds to the whole-body QP.
 
 :class:`JumpPlan` is a :class:`pr2_drake.controllers.plan.WholeBodyPlan` with a 3-D CoM
 acceleration (from the launch MPC, or an impedance on landing) and a reference for each sole
-(flight: both soles swing). The other tasks (pelvis orientation, sole contacts, posture) read
+(flight: both soles swing). The other objectives (pelvis orientation, sole contacts, posture) read
 the fields they always read. Frames: W world (z up); units m, s.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 
 import numpy as np
 
-from pr2_drake.controllers.plan import SwingReference, WholeBodyPlan
-from pr2_drake.controllers.tasks import PelvisOrientationTask, SwingSoleTask, Task
-from pr2_drake.controllers.walking_params import TaskGains
+from pr2_drake.controllers.tracking.objectives import PelvisOrientationObjective, SwingSoleObjective, Objective
+from pr2_drake.controllers.walking_params import ObjectiveGains
 
 
-@dataclass
-class JumpPlan(WholeBodyPlan):
-    """A plan with a CoM acceleration in 3-D and per-sole references.
-
-    Attributes:
-        com_acc: desired CoM acceleration a_WCcm [m/s^2] (W), already a feedback law.
-        com_weight: QP weight of its x, y, z rows (0: no CoM task, e.g. in flight).
-        soles: per sole (0 left, 1 right) a reference, or None (in contact or free).
-        pelvis_scale: factor on the pelvis orientation weight (the launch lets the torso pitch
-            so that the angular momentum stays small: with both soles fixed the two conflict).
-        L_rate: desired rate of the centroidal angular momentum [N m] (W), already a feedback
-            law; L_weight: its QP weight (0: none, e.g. in flight, where it is conserved).
-    """
-
-    com_acc: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    com_weight: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    L_rate: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    L_weight: float = 0.0
-    pelvis_scale: float = 1.0  # times the pelvis orientation task's weight
-    soles: list[SwingReference | None] = field(default_factory=lambda: [None, None])
-
-
-class Com3dTask(Task):
+class Com3dObjective(Objective):
     """CoM acceleration rows J_com vdot = plan.com_acc - Jdot v, weighted by plan.com_weight."""
 
     def add_to(self, cost, model, plan) -> None:
@@ -50,7 +26,7 @@ class Com3dTask(Task):
         cost.add(J, plan.com_acc - jdv, w)
 
 
-class AngularMomentumTask(Task):
+class AngularMomentumObjective(Objective):
     """Rate of the centroidal angular momentum towards ``plan.L_rate``.
 
     The floating base's rows of M vdot + h = J_c^T f are the contact wrench about the base
@@ -81,8 +57,8 @@ class AngularMomentumTask(Task):
         cost.add(A, plan.L_rate - b, np.full(3, plan.L_weight))
 
 
-class ScaledPelvisTask(PelvisOrientationTask):
-    """:class:`PelvisOrientationTask` with its weight times ``plan.pelvis_scale``."""
+class ScaledPelvisObjective(PelvisOrientationObjective):
+    """:class:`PelvisOrientationObjective` with its weight times ``plan.pelvis_scale``."""
 
     def add_to(self, cost, model, plan) -> None:
         w0 = self.w
@@ -94,7 +70,7 @@ class ScaledPelvisTask(PelvisOrientationTask):
 
 
 class _OneSwing:
-    """The view of a plan that :class:`SwingSoleTask` reads (``.swing``)."""
+    """The view of a plan that :class:`SwingSoleObjective` reads (``.swing``)."""
 
     __slots__ = ("swing",)
 
@@ -102,12 +78,12 @@ class _OneSwing:
         self.swing = None
 
 
-class SolesTask(Task):
-    """Both soles along ``plan.soles`` (the swing-sole rows of :class:`SwingSoleTask` for each
+class SolesObjective(Objective):
+    """Both soles along ``plan.soles`` (the swing-sole rows of :class:`SwingSoleObjective` for each
     sole that has a reference)."""
 
-    def __init__(self, pos: TaskGains, rot: TaskGains):
-        self._swing = SwingSoleTask(pos, rot)
+    def __init__(self, pos: ObjectiveGains, rot: ObjectiveGains):
+        self._swing = SwingSoleObjective(pos, rot)
         self._view = _OneSwing()
 
     def add_to(self, cost, model, plan) -> None:

@@ -1,6 +1,8 @@
-"""Terrain pieces for the locomotion tasks: a rocky road of tilted boxes, a slope, a staircase.
+"""The ground of the locomotion tasks' scenes: a rocky road of tilted boxes, a slope, a staircase.
 
-Each piece is built from convex boxes registered on the world body (point contact convexifies
+Scene geometry: what the world is (bodies in the plant, and the heights the referee judges
+falls and regions by). What a controller believes about the ground is its terrain model,
+:mod:`pr2_drake.controllers.planning.terrain`, built from the priors alone. Each piece is built from convex boxes registered on the world body (point contact convexifies
 meshes, so rough ground is made of many boxes), and knows its own terrain height
 ``height(x, y)`` [m] in the world frame W (``None`` off the piece). Dimensions come from the
 task YAML (the ``scene`` section), given as keyword arguments of the dataclasses below.

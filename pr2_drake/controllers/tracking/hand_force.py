@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pr2_drake.controllers.wb_model import WholeBodyModel
+from pr2_drake.controllers.model import WholeBodyModel
 
 
 class HandForceEstimator:

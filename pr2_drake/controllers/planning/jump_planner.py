@@ -6,7 +6,7 @@ a timeline ending at the requested take-off time:
 - CROUCH: the CoM goes down to ``crouch_height`` along a quintic (PD + feed-forward), over the
   middle of the soles (leaning along the launch's horizontal velocity, so that the launch
   force passes through the CoM: ``launch_cop_back``), then holds;
-- LAUNCH: the centroidal MPC (:class:`pr2_drake.controllers.centroidal_mpc.CentroidalMpc`)
+- LAUNCH: the centroidal MPC (:class:`pr2_drake.controllers.planning.centroidal_mpc.CentroidalMpc`)
   chooses the sole forces that reach the take-off velocity v_to at ``takeoff_height`` at the
   take-off time; the QP tracks the CoM acceleration of its first knot. v_to: vertical
   sqrt(2 g apex) (apex = CoM rise above take-off), horizontal as requested;
@@ -31,12 +31,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pr2_drake.controllers.centroidal_mpc import CentroidalMpc, MpcSolution, leg_force_limits
+from pr2_drake.controllers.frames import rot_z
+from pr2_drake.controllers.planning.centroidal_mpc import CentroidalMpc, MpcSolution, leg_force_limits
 from pr2_drake.controllers.jump_params import JumpParams
-from pr2_drake.controllers.jump_tasks import JumpPlan
+from pr2_drake.controllers.plan import JumpPlan
 from pr2_drake.controllers.plan import SwingReference
-from pr2_drake.controllers.swing import _quintic
-from pr2_drake.controllers.wb_model import WholeBodyModel
+from pr2_drake.controllers.planning.swing import _quintic
+from pr2_drake.controllers.model import WholeBodyModel
 from pr2_drake.ports import N_ARMS
 
 
@@ -61,11 +62,6 @@ class JumpRequest:
     def vertical_speed(self, gravity: float) -> float:
         """Take-off vertical CoM speed [m/s] of a ballistic rise of ``apex``."""
         return math.sqrt(2.0 * gravity * self.apex)
-
-
-def rot_z(yaw: float) -> np.ndarray:
-    c, s = math.cos(yaw), math.sin(yaw)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def _blend(a: np.ndarray, b: np.ndarray, t: float, t0: float, T: float):

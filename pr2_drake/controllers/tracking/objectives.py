@@ -1,14 +1,14 @@
-"""Tracking tasks of the whole-body QP: small objects that each contribute cost rows.
+"""Tracking objectives of the whole-body QP: small objects that each contribute cost rows.
 
-A task reads the plan (:class:`pr2_drake.controllers.plan.WholeBodyPlan`) and the robot model
-(:class:`pr2_drake.controllers.wb_model.WholeBodyModel`, already at the measured state) and
-adds rows (J, desired acceleration a, weight w) to a :class:`TaskCost`: the QP minimises
+A objective reads the plan (:class:`pr2_drake.controllers.plan.WholeBodyPlan`) and the robot model
+(:class:`pr2_drake.controllers.model.WholeBodyModel`, already at the measured state) and
+adds rows (J, desired acceleration a, weight w) to a :class:`ObjectiveCost`: the QP minimises
 sum w (J vdot - a)^2 over the generalized accelerations vdot (Jdot v already subtracted from a).
-Gains are :class:`pr2_drake.controllers.walking_params.TaskGains` from YAML:
+Gains are :class:`pr2_drake.controllers.walking_params.ObjectiveGains` from YAML:
 a = kp (x_d - x) + kd (v_d - v) + a_ff, kp [1/s^2], kd [1/s].
 
-``task.rows(model, plan)`` returns the rows as a list of (J, a, w) (for tests and plots); the
-controller uses the faster ``task.add_to(cost, model, plan)``.
+``objective.rows(model, plan)`` returns the rows as a list of (J, a, w) (for tests and plots); the
+controller uses the faster ``objective.add_to(cost, model, plan)``.
 """
 
 from __future__ import annotations
@@ -18,9 +18,10 @@ import math
 import numpy as np
 from pydrake.math import RotationMatrix
 
+from pr2_drake.controllers.frames import rot_z
 from pr2_drake.controllers.plan import WholeBodyPlan
-from pr2_drake.controllers.walking_params import QpParams, TaskGains
-from pr2_drake.controllers.wb_model import WholeBodyModel
+from pr2_drake.controllers.walking_params import QpParams, ObjectiveGains
+from pr2_drake.controllers.model import WholeBodyModel
 
 
 def rotation_error(R_d: np.ndarray, R: np.ndarray) -> np.ndarray:
@@ -38,13 +39,8 @@ def rotation_error(R_d: np.ndarray, R: np.ndarray) -> np.ndarray:
     return v * (np.arctan2(s, c) / s)
 
 
-def rot_z(yaw: float) -> np.ndarray:
-    c, s = np.cos(yaw), np.sin(yaw)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-class TaskCost:
-    """The QP cost over vdot, 0.5 vdot^T H vdot + g^T vdot, summed from task rows.
+class ObjectiveCost:
+    """The QP cost over vdot, 0.5 vdot^T H vdot + g^T vdot, summed from objective rows.
 
     ``record=True`` also keeps every (J, a, w) added (slower; for tests and debugging).
     """
@@ -80,27 +76,27 @@ class TaskCost:
         self.g[idx] -= w * a
 
 
-class Task:
-    """A tracking task: ``add_to`` adds its rows for this tick."""
+class Objective:
+    """A tracking objective: ``add_to`` adds its rows for this tick."""
 
-    def add_to(self, cost: TaskCost, model: WholeBodyModel, plan: WholeBodyPlan) -> None:
+    def add_to(self, cost: ObjectiveCost, model: WholeBodyModel, plan: WholeBodyPlan) -> None:
         raise NotImplementedError
 
     def rows(self, model: WholeBodyModel, plan: WholeBodyPlan):
         """This tick's rows as a list of (J, a, w)."""
-        cost = TaskCost(model.nv, record=True)
+        cost = ObjectiveCost(model.nv, record=True)
         self.add_to(cost, model, plan)
         return cost.rows
 
 
-class ComTask(Task):
+class ComObjective(Objective):
     """CoM acceleration: x, y from the plan's feedback law, z by PD to the planned height.
 
     In single support (``plan.com_frame_yaw`` set) the rows are expressed in the stance sole's
     yaw frame and the lateral row has ``lateral_single_weight``.
     """
 
-    def __init__(self, xy: TaskGains, z: TaskGains, lateral_single_weight: float):
+    def __init__(self, xy: ObjectiveGains, z: ObjectiveGains, lateral_single_weight: float):
         self.xy, self.z = xy, z
         self.w = np.array([xy.weight, xy.weight, z.weight])
         self.w_single = np.array([xy.weight, lateral_single_weight, z.weight])
@@ -117,10 +113,10 @@ class ComTask(Task):
             cost.add(J, a - jdv, self.w)
 
 
-class PelvisOrientationTask(Task):
+class PelvisOrientationObjective(Objective):
     """Pelvis (base_link) orientation towards ``plan.pelvis_R`` (rows of w_WB, in W)."""
 
-    def __init__(self, gains: TaskGains, model: WholeBodyModel):
+    def __init__(self, gains: ObjectiveGains, model: WholeBodyModel):
         self.gains = gains
         self.idx = np.asarray(model.maps.v_base[:3])
         self.w = np.full(3, gains.weight)
@@ -131,7 +127,7 @@ class PelvisOrientationTask(Task):
         cost.add_selection(self.idx, self.gains.kp * e - self.gains.kd * w_WB, self.w)
 
 
-class SoleContactTask(Task):
+class SoleContactObjective(Objective):
     """Stance soles do not accelerate: hard rows (``J_kin`` vdot = ``a_kin``, for the QP's
     constraints) for fully loaded soles, weighted cost rows for soles being loaded/unloaded.
     Also gathers ``J_all``, the contact-point Jacobians of both soles for the dynamics rows.
@@ -197,11 +193,11 @@ class SoleContactTask(Task):
         return E
 
 
-class SwingSoleTask(Task):
+class SwingSoleObjective(Objective):
     """Swing-sole pose along ``plan.swing``: position rows in W; orientation rows in the
     desired sole frame with no weight on roll about its x axis (the legs have no ankle roll)."""
 
-    def __init__(self, pos: TaskGains, rot: TaskGains):
+    def __init__(self, pos: ObjectiveGains, rot: ObjectiveGains):
         self.pos, self.rot = pos, rot
         self.w_rot = np.array([0.0, rot.weight, rot.weight])
         self.w_pos = np.full(3, pos.weight)
@@ -218,11 +214,11 @@ class SwingSoleTask(Task):
         cost.add(J[3:], a_lin - jdv[3:], self.w_pos)
 
 
-class HandPositionTask(Task):
+class HandPositionObjective(Objective):
     """Hand sphere centre p_WH of one hand (0 left, 1 right) towards ``plan.hands[side].p``
     (no rows when that is None)."""
 
-    def __init__(self, side: int, gains: TaskGains):
+    def __init__(self, side: int, gains: ObjectiveGains):
         self.side = side
         self.gains = gains
         self.w = np.full(3, gains.weight)
@@ -236,14 +232,14 @@ class HandPositionTask(Task):
         cost.add(J, a, self.w)
 
 
-class HandUprightTask(Task):
+class HandUprightObjective(Objective):
     """Keeps the axis ``plan.hands[side].up`` of the hand frame H vertical in W: rows about the
     world x and y axes only (the heading about z stays free), error (R_WH u) x z_W [rad]. The
-    arm has 4 joints, so with the position task this trades tilt against position through the
+    arm has 4 joints, so with the position objective this trades tilt against position through the
     weights (no rows when ``up`` is None). The error is saturated at ``max_error``, so that a
     hand coming from a far tilt is turned without a burst of arm torque."""
 
-    def __init__(self, side: int, gains: TaskGains, max_error: float = 0.2):
+    def __init__(self, side: int, gains: ObjectiveGains, max_error: float = 0.2):
         self.side = side
         self.gains = gains
         if not 0.0 < max_error <= 1.0:  # a sine; at 1 nothing is saturated
@@ -265,7 +261,7 @@ class HandUprightTask(Task):
         cost.add(J[:2], a[:2], self.w)
 
 
-class PostureTask(Task):
+class PostureObjective(Objective):
     """Joint posture: every joint towards ``q_nominal`` (18, original order: arms, legs), with
     per-joint kp [1/s^2], kd [1/s] and weights."""
 

@@ -1,18 +1,22 @@
-"""Terrain with height for the footstep planner: planar patches, and stairs from the priors.
+"""The controller's terrain model: what the footstep planner believes about the ground.
 
-A :class:`PatchTerrain` is a set of planar patches, each an axis-aligned rectangle in xy (W)
-with a plane z = z0 + gx (x - cx) + gy (y - cy) over it (c the rectangle's centre). It answers
-the ground height and the unit normal under a point (the highest patch containing it; the base
-height elsewhere). Steps and plateaus are level patches; a slope is one tilted patch; a rocky
-road would be one patch per stone: all fit the same interface.
+A terrain model answers, for a swing sole's target, the height and landing pitch of the foothold
+(``foothold``) and the height the swing must clear on its way (``swing_clearance``; lift, move,
+lower: :class:`pr2_drake.controllers.planning.swing.SwingTrajectory`). It is built from what
+the robot knows (its stance sole, the task's priors), never from the simulator's scene: the
+scene's own ground (boxes in the plant, the referee's heights) is :mod:`pr2_drake.tasks.ground`.
 
-It is a terrain model of the gait planner (:class:`pr2_drake.controllers.footsteps.
-FlatTerrain` interface): ``foothold`` gives a swing target's height and landing pitch from the
-terrain under the target, and ``swing_clearance`` the height the swing sole must clear when its
-path crosses an edge (lift, move, lower: :class:`pr2_drake.controllers.swing.SwingTrajectory`).
+- :class:`FlatTerrain`: the swing sole lands at the stance sole's height, level (the default);
+- :class:`SlopeTerrain`: an incline of known angle (task 4's prior);
+- :class:`RoughTerrain`: unknown low stones, touchdown from contact (task 1);
+- :class:`PatchTerrain`: planar patches, each an axis-aligned rectangle in xy (W) with a plane
+  z = z0 + gx (x - cx) + gy (y - cy) over it (c the rectangle's centre); it answers the ground
+  height and the unit normal under a point (the highest patch containing it; the base height
+  elsewhere). Steps and plateaus are level patches, a slope one tilted patch.
+  :func:`stairs_terrain` builds a staircase; :func:`stairs_from_priors` builds task 5's from
+  the priors (``step_height``, ``step_depth``, ``step_width``, ``step_count``,
+  ``step_start_x``).
 
-:func:`stairs_terrain` builds a staircase; :func:`stairs_from_priors` builds task 5's from the
-priors (``step_height``, ``step_depth``, ``step_width``, ``step_count``, ``step_start_x``).
 Units: m, rad; frames: W world (z up), S sole (x forward).
 """
 
@@ -24,12 +28,90 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from pr2_drake.controllers.footsteps import FlatTerrain
 
 #: [m] heights closer than this are the same level.
 LEVEL_TOLERANCE = 0.002
 #: [m] spacing of terrain samples along a sole or a swing path.
 SAMPLE_STEP = 0.005
+
+
+class FlatTerrain:
+    """Terrain model of the footstep planner: a swing sole lands at the stance sole's height,
+    level. Subclasses estimate the height and pitch of a foothold from what the robot knows
+    (its stance sole, the task's priors).
+
+    ``known_heights``: whether :meth:`foothold` sets the swing target's height and pitch (then
+    touchdown is detected against that target height; flat: against the stance sole).
+    """
+
+    known_heights = False
+
+    def foothold(self, stance: np.ndarray, stance_slope: float,
+                 target: np.ndarray) -> tuple[float, float]:
+        """Height [m, W] and pitch [rad, rotation about the sole's y axis; negative = toe up]
+        of a sole landing at ``target`` (x, y, z, yaw).
+
+        Args:
+            stance: the stance sole (x, y, z, yaw), measured.
+            stance_slope: rise of the stance sole per metre along its x axis (measured).
+        """
+        return float(stance[2]), 0.0
+
+    def swing_clearance(self, start: np.ndarray, target: np.ndarray) -> float | None:
+        """Height [m, W] a swing sole from ``start`` to ``target`` (x, y, z, yaw) must clear
+        (it lifts, moves, then lowers: :class:`pr2_drake.controllers.planning.swing.SwingTrajectory`),
+        or None for the plain swing curve (no edge on the way; the default)."""
+        return None
+
+
+class SlopeTerrain(FlatTerrain):
+    """A planar incline of known angle between a lower and an upper level (the task-4 prior).
+
+    The slope is taken to rise towards ``goal`` (xy, W).
+    The stance sole is on the incline when it is pitched by more than ``on_slope_fraction`` of
+    the angle; then the foothold height is the stance height plus the rise of the plane, capped
+    at ``z_top`` (the plateau, e.g. the goal height), and the landing pitch is the plane's.
+    Off the incline the foothold is level at the stance height (the first step onto the ramp
+    lands early and is caught by touchdown detection).
+    """
+
+    known_heights = True
+
+    def __init__(self, angle: float, goal, z_top: float, on_slope_fraction: float = 0.5):
+        self.goal = np.asarray(goal, dtype=float)[:2]
+        self.tan = float(np.tan(angle))
+        self.z_top = float(z_top)
+        self.on_slope_fraction = on_slope_fraction
+
+    def foothold(self, stance, stance_slope, target):
+        z0 = float(stance[2])
+        if abs(stance_slope) < self.on_slope_fraction * self.tan:
+            return z0, 0.0
+        d = self.goal - np.asarray(stance[:2])
+        n = float(np.linalg.norm(d))
+        if n < 1e-6:
+            return z0, 0.0
+        gradient = np.sign(stance_slope) * self.tan * d / n
+        # The incline the stance sole is on rises along its x axis; along the target's axis:
+        axis = np.array([np.cos(target[3]), np.sin(target[3])])
+        z = z0 + float(gradient @ (np.asarray(target[:2]) - stance[:2]))
+        if z >= self.z_top - 0.01:
+            return min(z, self.z_top), 0.0
+        return z, -float(np.arctan(gradient @ axis))
+
+
+class RoughTerrain(FlatTerrain):
+    """Unknown low obstacles (stones): the swing sole aims ``drop`` below the stance sole, level,
+    so that it meets the ground while still descending (early rather than late), and the
+    touchdown is detected from contact (a blocked descent)."""
+
+    known_heights = True
+
+    def __init__(self, drop: float):
+        self.drop = float(drop)
+
+    def foothold(self, stance, stance_slope, target):
+        return float(stance[2]) - self.drop, 0.0
 
 
 @dataclass(frozen=True)

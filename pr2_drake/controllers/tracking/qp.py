@@ -16,7 +16,7 @@ Constraints (rows of one preallocated sparse matrix, coefficients updated every 
 - kinematic rows J_k vdot = a_k (e.g. stance soles do not accelerate), each row switched off
   by infinite bounds when not needed.
 
-The cost is the weighted least-squares sum of the task errors, given as H = sum J^T W J and
+The cost is the weighted least-squares sum of the tracking objectives' errors, given as H = sum J^T W J and
 g = -sum J^T W a over vdot, plus small regularisation. The problem is built once; each tick
 updates P, q, A, l, u in place.
 
@@ -212,7 +212,7 @@ class WholeBodyQp:
         Args:
             M, h: mass matrix and bias (C v - tau_g) of the plant.
             Jc: (3 n_points x nv) contact point Jacobians, translational, in W.
-            H, g: cost over vdot (0.5 vdot^T H vdot + g^T vdot), from the tasks.
+            H, g: cost over vdot (0.5 vdot^T H vdot + g^T vdot), from the objectives.
             fz_max: (n_points,) upper bound on each normal force [N]; 0 = not in contact.
             tau_arms: the arm joint torques applied by the arm controller [Nm].
             fz_min: (n_points,) lower bound on the normal force of points in contact [N]
@@ -225,9 +225,37 @@ class WholeBodyQp:
                 for a hand that holds nothing (default: all zero).
             hand_prior: (3 n_hands,) force [N] the regularisation pulls the hand forces to.
         """
-        p, nv, s, nd = self.p, self.nv, self.scale, self.n_dyn
-        A = self.A
+        p, nv = self.p, self.nv
         in_contact = fz_max > 0
+        hd = self._set_dynamics(M, h, Jc, in_contact, tau_arms, J_hands, hand_bounds,
+                                hand_prior)
+        self._set_force_bounds(fz_max, fz_min, in_contact)
+        self._set_kinematic_rows(J_kin, a_kin, box)
+        P = self.P
+        P[:nv, :nv] = H
+        self._P_vdiag += p.vdot_reg
+        self.q[:nv] = g
+        l = np.maximum(self.l, -_INF)
+        u = np.minimum(self.u, _INF)
+        # One reduction per array: a NaN or inf anywhere makes the sum non-finite (the bounds
+        # are clamped to +-1e30 above, so only NaN can remain there).
+        if not (np.isfinite(P.sum() + self.A.sum() + self.q.sum())
+                and not np.isnan(l.sum() + u.sum())):
+            return self._fallback("non-finite problem data", 0)
+        if self.use_daqp:
+            result = self._solve_daqp(l, u, hd, in_contact)
+            if result is not None:
+                return result
+            # No solution from the active-set method: let OSQP try (approximate, capped).
+        return self._solve_osqp(l, u, h, hd, in_contact)
+
+    def _set_dynamics(self, M, h, Jc, in_contact, tau_arms, J_hands, hand_bounds,
+                      hand_prior) -> np.ndarray:
+        """The floating-base, leg and arm rows of M vdot + h = Jc^T f (+ J_hands^T f_H) and
+        their bounds (the legs' and QP-driven arms' peak torques, or the applied arm torques);
+        the hand-force columns, bounds and prior. Returns h of those rows."""
+        nv, s, nd = self.nv, self.scale, self.n_dyn
+        A = self.A
         # Forces of points not in contact leave the dynamics rows (their columns are zeroed,
         # the sparsity pattern stays), so solver tolerance cannot create phantom support.
         JcT = Jc.T * (s * np.repeat(in_contact, 3))
@@ -261,18 +289,26 @@ class WholeBodyQp:
         elif nd > nl and tau_arms is not None:
             l[nl:nd] += tau_arms
             u[nl:nd] += tau_arms
-        zr = self._fz_rows
-        lo = p.fz_min if fz_min is None else np.minimum(fz_min, 0.5 * fz_max)
-        l[zr] = np.where(in_contact, lo / s, 0.0)
-        u[zr] = fz_max / s
+        return hd
+
+    def _set_force_bounds(self, fz_max, fz_min, in_contact) -> None:
+        """Normal-force bounds of the sole contact points (zero off contact)."""
+        s, zr = self.scale, self._fz_rows
+        lo = self.p.fz_min if fz_min is None else np.minimum(fz_min, 0.5 * fz_max)
+        self.l[zr] = np.where(in_contact, lo / s, 0.0)
+        self.u[zr] = fz_max / s
+
+    def _set_kinematic_rows(self, J_kin, a_kin, box) -> None:
+        """The kinematic rows J_kin vdot = a_kin (NaN: inactive) and the box on vdot."""
+        l, u = self.l, self.u
         if self.n_kin:
             kr = self._kin_slice
             if J_kin is None or a_kin is None:
-                A[kr, :nv] = 0.0
+                self.A[kr, :self.nv] = 0.0
                 l[kr] = -np.inf
                 u[kr] = np.inf
             else:
-                A[kr, :nv] = J_kin
+                self.A[kr, :self.nv] = J_kin
                 active = np.isfinite(a_kin)
                 l[kr] = np.where(active, a_kin, -np.inf)
                 u[kr] = np.where(active, a_kin, np.inf)
@@ -283,30 +319,25 @@ class WholeBodyQp:
                 u[br] = np.inf
             else:
                 l[br], u[br] = box
-        P = self.P
-        P[:nv, :nv] = H
-        self._P_vdiag += p.vdot_reg
-        self.q[:nv] = g
-        l = np.maximum(self.l, -_INF)
-        u = np.minimum(self.u, _INF)
-        # One reduction per array: a NaN or inf anywhere makes the sum non-finite (the bounds
-        # are clamped to +-1e30 above, so only NaN can remain there).
-        if not (np.isfinite(P.sum() + A.sum() + self.q.sum())
-                and not np.isnan(l.sum() + u.sum())):
-            return self._fallback("non-finite problem data", 0)
-        if self.use_daqp:
-            sense = self._sense
-            sense[:] = 0
-            sense[l == u] = _DAQP_EQUALITY
-            # (DAQP copies its inputs: the constant parts of P and A stay intact.) Typically
-            # 2-10 active-set iterations; the cap bounds a pathological tick.
-            x, _, exitflag, info = daqp.solve(P, self.q, A, u, l, sense, iter_limit=1000)
-            if exitflag in _DAQP_OK and np.isfinite(x.sum()):
-                return self._result(x, hd, in_contact, "daqp", int(info["iterations"]))
-            # No solution from the active-set method: let OSQP try (approximate, capped).
+
+    def _solve_daqp(self, l, u, hd, in_contact) -> QpResult | None:
+        """DAQP's solution, or None when it has none."""
+        sense = self._sense
+        sense[:] = 0
+        sense[l == u] = _DAQP_EQUALITY
+        # (DAQP copies its inputs: the constant parts of P and A stay intact.) Typically
+        # 2-10 active-set iterations; the cap bounds a pathological tick.
+        x, _, exitflag, info = daqp.solve(self.P, self.q, self.A, u, l, sense, iter_limit=1000)
+        if exitflag in _DAQP_OK and np.isfinite(x.sum()):
+            return self._result(x, hd, in_contact, "daqp", int(info["iterations"]))
+        return None
+
+    def _solve_osqp(self, l, u, h, hd, in_contact) -> QpResult:
+        """OSQP's solution (warm-started; approximate, capped), or the fallback."""
+        s, nv = self.scale, self.nv
         ext = self._ext
-        Px = P[self._p_rows, self._p_cols]
-        Ax = A[self._a_rows, self._a_cols]
+        Px = self.P[self._p_rows, self._p_cols]
+        Ax = self.A[self._a_rows, self._a_cols]
         try:
             ext.update_data_vec(q=self.q, l=l, u=u)
             ext.update_data_mat(P_x=Px, P_i=None, A_x=Ax, A_i=None)

@@ -13,18 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from pr2_drake.controllers.frames import rot2, wrap
 from pr2_drake.controllers.walking_params import GaitParams
 
 SIDE_SIGN = (1.0, -1.0)
-
-
-def rot2(yaw: float) -> np.ndarray:
-    c, s = np.cos(yaw), np.sin(yaw)
-    return np.array([[c, -s], [s, c]])
-
-
-def wrap(angle: float) -> float:
-    return float((angle + np.pi) % (2 * np.pi) - np.pi)
 
 
 def next_footstep(stance: np.ndarray, stance_side: int, heading: float, command: np.ndarray,
@@ -72,89 +64,10 @@ def clamp_to_stance(target: np.ndarray, stance: np.ndarray, stance_side: int,
     return out
 
 
-class FlatTerrain:
-    """Terrain model of the footstep planner: a swing sole lands at the stance sole's height,
-    level. Subclasses estimate the height and pitch of a foothold from what the robot knows
-    (its stance sole, the task's priors).
-
-    ``known_heights``: whether :meth:`foothold` sets the swing target's height and pitch (then
-    touchdown is detected against that target height; flat: against the stance sole).
-    """
-
-    known_heights = False
-
-    def foothold(self, stance: np.ndarray, stance_slope: float,
-                 target: np.ndarray) -> tuple[float, float]:
-        """Height [m, W] and pitch [rad, rotation about the sole's y axis; negative = toe up]
-        of a sole landing at ``target`` (x, y, z, yaw).
-
-        Args:
-            stance: the stance sole (x, y, z, yaw), measured.
-            stance_slope: rise of the stance sole per metre along its x axis (measured).
-        """
-        return float(stance[2]), 0.0
-
-    def swing_clearance(self, start: np.ndarray, target: np.ndarray) -> float | None:
-        """Height [m, W] a swing sole from ``start`` to ``target`` (x, y, z, yaw) must clear
-        (it lifts, moves, then lowers: :class:`pr2_drake.controllers.swing.SwingTrajectory`),
-        or None for the plain swing curve (no edge on the way; the default)."""
-        return None
-
-
-class SlopeTerrain(FlatTerrain):
-    """A planar incline of known angle between a lower and an upper level (the task-4 prior).
-
-    The slope is taken to rise towards ``goal`` (xy, W).
-    The stance sole is on the incline when it is pitched by more than ``on_slope_fraction`` of
-    the angle; then the foothold height is the stance height plus the rise of the plane, capped
-    at ``z_top`` (the plateau, e.g. the goal height), and the landing pitch is the plane's.
-    Off the incline the foothold is level at the stance height (the first step onto the ramp
-    lands early and is caught by touchdown detection).
-    """
-
-    known_heights = True
-
-    def __init__(self, angle: float, goal, z_top: float, on_slope_fraction: float = 0.5):
-        self.goal = np.asarray(goal, dtype=float)[:2]
-        self.tan = float(np.tan(angle))
-        self.z_top = float(z_top)
-        self.on_slope_fraction = on_slope_fraction
-
-    def foothold(self, stance, stance_slope, target):
-        z0 = float(stance[2])
-        if abs(stance_slope) < self.on_slope_fraction * self.tan:
-            return z0, 0.0
-        d = self.goal - np.asarray(stance[:2])
-        n = float(np.linalg.norm(d))
-        if n < 1e-6:
-            return z0, 0.0
-        gradient = np.sign(stance_slope) * self.tan * d / n
-        # The incline the stance sole is on rises along its x axis; along the target's axis:
-        axis = np.array([np.cos(target[3]), np.sin(target[3])])
-        z = z0 + float(gradient @ (np.asarray(target[:2]) - stance[:2]))
-        if z >= self.z_top - 0.01:
-            return min(z, self.z_top), 0.0
-        return z, -float(np.arctan(gradient @ axis))
-
-
-class RoughTerrain(FlatTerrain):
-    """Unknown low obstacles (stones): the swing sole aims ``drop`` below the stance sole, level,
-    so that it meets the ground while still descending (early rather than late), and the
-    touchdown is detected from contact (a blocked descent)."""
-
-    known_heights = True
-
-    def __init__(self, drop: float):
-        self.drop = float(drop)
-
-    def foothold(self, stance, stance_slope, target):
-        return float(stance[2]) - self.drop, 0.0
-
-
 class FootstepPlanner:
     """Interface of a footstep planner: which sole steps first and where the next soles land.
 
-    The gait state machine (:class:`pr2_drake.controllers.gait.GaitPlanner`) asks it at the
+    The gait state machine (:class:`pr2_drake.controllers.planning.gait.GaitPlanner`) asks it at the
     start of a walk and at every touchdown; step adjustment may then move the landing point.
     Footsteps are sole poses (x, y, z, yaw) in W [m, rad]; sides 0 left, 1 right.
 

@@ -3,14 +3,14 @@
 ``GaitPlanner.update(t, command, model)`` runs once per control tick and fills a
 :class:`pr2_drake.controllers.plan.WholeBodyPlan`: which soles are in contact, the CoM
 acceleration (a feedback law of the measured CoM), the CoM height, the pelvis orientation and
-the swing-sole reference. It knows nothing about the QP or the tasks that track the plan.
+the swing-sole reference. It knows nothing about the QP or the objectives that track the plan.
 
 KUAVO's legs have no ankle roll and its soles touch the ground along a line (heel and toe
 spheres, see models/kuavo/params.yaml): in single support the ZMP is on the sole's centre line,
 so sideways the robot is a linear inverted pendulum steered only by where it puts its feet.
 The design follows from that:
 
-- Footsteps come from a footstep planner (:class:`pr2_drake.controllers.footsteps.
+- Footsteps come from a footstep planner (:class:`pr2_drake.controllers.planning.footsteps.
   FootstepPlanner`, passed in; by default from the velocity command), then move with the
   divergent component of motion (DCM, capture point) xi = c + cdot / omega: the swing sole goes
   where the DCM will be at the next ZMP switch, minus the periodic offset the next planned steps
@@ -37,21 +37,20 @@ import enum
 import numpy as np
 from pydrake.math import RotationMatrix
 
-from pr2_drake.controllers.com_plan import ComPlanner, zmp_point
-from pr2_drake.controllers.footsteps import (
+from pr2_drake.controllers.frames import rot2, rot_z, wrap, yaw_of
+from pr2_drake.controllers.planning.com_plan import ComPlanner, zmp_point
+from pr2_drake.controllers.planning.footsteps import (
     SIDE_SIGN,
-    FlatTerrain,
     FootstepPlanner,
     VelocityFootstepPlanner,
     clamp_to_stance,
-    rot2,
-    wrap,
 )
+from pr2_drake.controllers.planning.terrain import FlatTerrain
 from pr2_drake.controllers.plan import SwingReference, WholeBodyPlan
-from pr2_drake.controllers.step_adjust import choose_step
-from pr2_drake.controllers.swing import SwingTrajectory
+from pr2_drake.controllers.planning.step_adjust import choose_step
+from pr2_drake.controllers.planning.swing import SwingTrajectory
 from pr2_drake.controllers.walking_params import WalkingParams
-from pr2_drake.controllers.wb_model import WholeBodyModel
+from pr2_drake.controllers.model import WholeBodyModel
 
 
 class Phase(enum.IntEnum):
@@ -60,15 +59,6 @@ class Phase(enum.IntEnum):
     SINGLE = 2
     DOUBLE = 3
     STOP = 4
-
-
-def yaw_of(R: np.ndarray) -> float:
-    return float(np.arctan2(R[1, 0], R[0, 0]))
-
-
-def rot_z(yaw: float) -> np.ndarray:
-    c, s = np.cos(yaw), np.sin(yaw)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 class GaitPlanner:
@@ -252,7 +242,7 @@ class GaitPlanner:
         plan.com_acc_xy = a_xy
         plan.com_z = self.z_target
         # On a line foot the lateral CoM acceleration is set by gravity: in single support the
-        # CoM task is expressed in the stance sole's frame (small lateral weight).
+        # CoM objective is expressed in the stance sole's frame (small lateral weight).
         plan.com_frame_yaw = (self.footholds[self.stance][3] if self.phase == Phase.SINGLE
                               else None)
         # Pelvis orientation (level, yaw along the heading).
@@ -499,7 +489,7 @@ class GaitPlanner:
     def _adjust_swing_target(self, t: float, com, comd) -> None:
         """Capture-point (DCM) stepping: choose where and when the swing sole lands so that, at
         the next ZMP switch, the DCM has the offset from the new sole that the planned steps
-        need (:func:`pr2_drake.controllers.step_adjust.choose_step`).
+        need (:func:`pr2_drake.controllers.planning.step_adjust.choose_step`).
 
         For the planned next two steps L1, L2 of period T, that periodic offset is
         b = (L1 exp(omega T) + L2) / (exp(2 omega T) - 1) (``self.dcm_offset``).
