@@ -87,9 +87,13 @@ def takeoff_time(t: float, soles_xy: np.ndarray, bar_xy: np.ndarray, bar_vel_xy:
     return JumpTiming(t_to, -p.lateral_speed * d, (p.clear_until - p.clear_from) - need)
 
 
+SAMPLES = 4  # bar positions the speed is measured from (three finite differences)
+
+
 class BarJumpPlanner(LeafSystem):
     """``body_state`` and ``task_feedback`` in, ``jump_command`` (4) out: zeros until the bar
-    moves, then one request (t_takeoff, vx, vy in the heading frame, apex), held."""
+    moves, then one request (t_takeoff, vx, vy in the heading frame, apex), held. Its memory
+    (the request, the bar's last positions) is discrete state."""
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
@@ -100,12 +104,12 @@ class BarJumpPlanner(LeafSystem):
         self._body = self.DeclareVectorInputPort("body_state", BODY_STATE_SIZE)
         self._fb = self.DeclareAbstractInputPort("task_feedback", AbstractValue.Make(dict()))
         self._cmd = self.DeclareDiscreteState(4)
+        # The bar's last SAMPLES positions: (t [s], x, y [m]) each, oldest first, and how many.
+        self._hist = self.DeclareDiscreteState(3 * SAMPLES + 1)
         self.DeclarePeriodicDiscreteUpdateEvent(self.params.period, 0.0, self._update)
         self.DeclareVectorOutputPort("jump_command", 4, weak_calc(self._calc),
                                      prerequisites_of_calc={self.discrete_state_ticket(
                                          self._cmd)})
-        self.timing: JumpTiming | None = None
-        self._samples: list = []
 
     def _update(self, context, state) -> None:
         cmd = state.get_mutable_vector(self._cmd)
@@ -115,10 +119,14 @@ class BarJumpPlanner(LeafSystem):
         t = context.get_time()
         v = np.asarray(fb.get("bar_velocity", np.zeros(3)), float)[:2]
         pos = np.asarray(fb.get("bar_position", np.zeros(3)), float)[:2]
-        hist = self._samples
-        hist.append((t, pos))
-        del hist[:-4]
-        if float(np.hypot(*v)) < self.params.min_bar_speed or len(hist) < 4:
+        hist = self._samples(context) + [(t, pos)]
+        del hist[:-SAMPLES]
+        memory = np.zeros(3 * SAMPLES + 1)
+        for k, (tk, pk) in enumerate(hist):
+            memory[3 * k:3 * k + 3] = tk, pk[0], pk[1]
+        memory[-1] = len(hist)
+        state.get_mutable_vector(self._hist).SetFromVector(memory)
+        if float(np.hypot(*v)) < self.params.min_bar_speed or len(hist) < SAMPLES:
             return
         # Wait for a steady speed: the bar's drive overshoots for a few tens of ms after it
         # starts, and the timing divides by the speed. Use the speed from positions (finite
@@ -135,10 +143,14 @@ class BarJumpPlanner(LeafSystem):
         hw = self.params.hip_half_width
         soles = np.array([p + hw * np.array([-s, c]), p - hw * np.array([-s, c])])
         timing = takeoff_time(t, soles, pos, v, self.bar_width, self.params)
-        self.timing = timing
         v_H = np.array([c * timing.velocity_W[0] + s * timing.velocity_W[1],
                         -s * timing.velocity_W[0] + c * timing.velocity_W[1]])
         cmd.SetFromVector([timing.t_takeoff, v_H[0], v_H[1], self.params.apex])
+
+    def _samples(self, context) -> list:
+        """The bar's last positions in ``context``: [(t [s], p_xy [m])], oldest first."""
+        h = context.get_discrete_state(self._hist).get_value()
+        return [(float(h[3 * k]), h[3 * k + 1:3 * k + 3].copy()) for k in range(int(h[-1]))]
 
     def _calc(self, context, output: BasicVector) -> None:
         output.SetFromVector(context.get_discrete_state(self._cmd).get_value())
