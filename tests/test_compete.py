@@ -93,13 +93,14 @@ def test_a_system_agent_in_the_sandbox_matches_the_same_agent_in_process(task, s
     from pr2_drake.compete.proxy import state_digest
     from pr2_drake.drive import drive_blocks
     from pr2_drake.episode import Episode, wire_system
+    from pr2_drake.run import agent_params
 
     scenario = Scenario(task=task, seed=0, agent=spec, seconds=0.3)
     r = run_sandboxed_episode(scenario, limits=LIMITS)
     assert r["steps"] == 300 and r["termination"] == "timeout"
     cls = load_agent_class(spec)
     episode = Episode(scenario, lambda b, tb: wire_system(instantiate_agent(
-        cls, priors=dict(tb.scene.priors), task=task, seed=0))(b, tb))
+        cls, priors=dict(tb.scene.priors), task=task, seed=0, **agent_params(scenario)))(b, tb))
     drive_blocks(episode)
     assert r["state_digest"] == state_digest(episode)
 
