@@ -30,7 +30,7 @@ from pydrake.multibody.plant import (
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import MatrixGain, Multiplexer
 
-from pr2_drake.actuation import ActuationAdapter
+from pr2_drake.actuation import ActuationAdapter, add_actuation
 from pr2_drake.camera import CameraSettings, add_camera_scene_graph, add_head_camera
 from pr2_drake.materials import visual_style
 from pr2_drake.grasp import GraspSystem
@@ -211,7 +211,7 @@ class Testbed(Diagram):
             "actuation", ActuationAdapter(self.params, maps, gains, self.stable_gain_limits())
         )
         builder.Connect(plant.get_state_output_port(self.robot), adapter.GetInputPort("robot_state"))
-        builder.Connect(adapter.GetOutputPort("actuation"), plant.get_actuation_input_port(self.robot))
+        add_actuation(builder, adapter, plant.get_actuation_input_port(self.robot))
         builder.ExportInput(adapter.GetInputPort("arms_command"), "arms_command")
         builder.ExportInput(adapter.GetInputPort("legs_command"), "legs_command")
         self._actuation = adapter

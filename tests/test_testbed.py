@@ -9,6 +9,7 @@ from pydrake.systems.analysis import Simulator
 from conftest import standing_simulator
 from pr2_drake.camera import CameraSettings
 from pr2_drake.ports import (
+    EFFORT_ARMS,
     EFFORT_LEGS,
     JOINT_STATE_SIZE,
     P_WB,
@@ -86,6 +87,32 @@ def test_effort_is_clamped_to_peak_torque_and_reported():
     simulator.AdvanceTo(0.002)
     applied = testbed.GetOutputPort("joint_state").Eval(ctx)[EFFORT_LEGS]
     np.testing.assert_allclose(applied, load_robot_params().effort_limits("legs"))
+
+
+def test_effort_limits_are_a_context_parameter_of_both_paths():
+    from pr2_drake.actuation import EFFORT_SOURCE, SPRING_SOURCE
+
+    simulator, testbed, ctx = _simulator()
+    adapter = testbed.GetSubsystemByName("actuation")
+    a_ctx = adapter.GetMyMutableContextFromRoot(ctx)
+    peak = np.concatenate([load_robot_params().effort_limits(g) for g in ("arms", "legs")])
+    np.testing.assert_array_equal(adapter.effort_limits(a_ctx), peak)
+    adapter.set_effort_limits(a_ctx, 0.5 * peak)  # e.g. a weaker motor, per episode
+    testbed.GetInputPort("legs_command").FixValue(ctx, JointGroupCommand.effort(np.full(10, 1e3)))
+    source = adapter.GetOutputPort("actuation_source")
+    assert source.Eval(a_ctx) == EFFORT_SOURCE  # efforts only: no Python at the physics step
+    simulator.AdvanceTo(0.002)
+    applied = testbed.GetOutputPort("joint_state").Eval(ctx)[EFFORT_LEGS]
+    np.testing.assert_allclose(applied, 0.5 * peak[8:])
+    # A position command far from the state saturates at the same halved limits.
+    testbed.GetInputPort("arms_command").FixValue(
+        ctx, JointGroupCommand.position(np.full(8, 3.0), np.full(8, 1e3), np.zeros(8)))
+    assert source.Eval(a_ctx) == SPRING_SOURCE
+    simulator.AdvanceTo(0.004)
+    applied = testbed.GetOutputPort("joint_state").Eval(ctx)[EFFORT_ARMS]
+    np.testing.assert_allclose(np.abs(applied), 0.5 * peak[:8])
+    with pytest.raises(ValueError, match="effort limits must be 18 positive"):
+        adapter.set_effort_limits(a_ctx, -peak)
 
 
 def test_position_mode_tracks_an_arm_step():
