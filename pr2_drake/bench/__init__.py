@@ -12,6 +12,8 @@
     pr2-drake bench perception   the task-6 object detector on rendered head-camera views
     pr2-drake bench parser       the task-6 instruction parser's accuracy
     pr2-drake bench sandbox      what the competition's process boundary costs per tick
+    pr2-drake bench fidelity     one episode per task at two physics steps: outcomes, contact
+                                 force peaks, CoM and sole deviations
     pr2-drake bench speed        walking and every task's default agent: real-time factor of
                                  this code against a baseline commit, CPU time, the split
 
@@ -29,7 +31,8 @@ import importlib
 BENCHMARKS = {"sim": "sim", "camera": "camera", "startup": "startup",
               "scene-step": "scene_step", "walking": "walking", "whole-body": "whole_body",
               "jumping": "jumping", "stairs": "stairs", "perception": "perception",
-              "parser": "parser", "sandbox": "sandbox", "speed": "speed"}
+              "parser": "parser", "sandbox": "sandbox", "speed": "speed",
+              "fidelity": "fidelity"}
 ALL = ("startup", "sim", "camera", "walking")  # ``pr2-drake bench all``
 
 
