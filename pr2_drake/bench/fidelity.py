@@ -1,10 +1,12 @@
 """``pr2-drake bench fidelity``: the same episode at two physics steps, side by side.
 
-    pr2-drake bench fidelity [--steps 0.001,0.002] [--tasks 1,2,3,4,5,6] [--seed 0]
-                             [--seconds S] [--json PATH]
+    pr2-drake bench fidelity [--plants 0.001:lagged,0.002:similar] [--tasks 1,2,3,4,5,6]
+                             [--seed 0] [--seconds S] [--json PATH]
 
-For each task, the default agent's episode on ``--seed`` runs once per physics step
-(``plant.time_step``; everything else as ``pr2-drake run``). A simulator monitor records, at
+For each task, the default agent's episode on ``--seed`` runs once per plant setting: a physics
+step [s] and optionally Drake's contact approximation (``plant.time_step``,
+``plant.contact_approximation``; the default: the 1 ms, "lagged" plant the project had before
+issue 27, against the 2 ms, "similar" one it has now; everything else as ``pr2-drake run``). A simulator monitor records, at
 every physics step, the contact forces on the robot (point contacts: the largest single contact
 force and the sum over the robot's contacts, magnitudes [N]; a discrete solver's contact force
 is its impulse over one step, so the peak over a step grows as the step shrinks: the sum is
@@ -92,8 +94,10 @@ class Recorder:
             plant.get_frame(f).CalcPoseInWorld(ctx).translation() for f in self._soles]))
 
 
-def run_one(task: int, seed: int, time_step: float, seconds: float | None) -> dict:
-    """The default agent's episode of ``task`` at ``time_step``, recorded."""
+def run_one(task: int, seed: int, time_step: float, seconds: float | None,
+            approximation: str | None = None) -> dict:
+    """The default agent's episode of ``task`` at ``time_step`` (and ``approximation``, None:
+    the default), recorded."""
     from pr2_drake.episode import Episode
     from pr2_drake.run import run_episode
     from pr2_drake.scenario import PlantSettings, Scenario
@@ -108,8 +112,10 @@ def run_one(task: int, seed: int, time_step: float, seconds: float | None) -> di
 
     Episode.initialize = initialize
     try:
-        scenario = Scenario(task=task, seed=seed, seconds=seconds,
-                            plant=replace(PlantSettings(), time_step=time_step))
+        plant = replace(PlantSettings(), time_step=time_step)
+        if approximation:
+            plant = replace(plant, contact_approximation=approximation)
+        scenario = Scenario(task=task, seed=seed, seconds=seconds, plant=plant)
         report = run_episode(scenario)
     finally:
         Episode.initialize = original
@@ -136,36 +142,44 @@ def compare(ref: dict, other: dict) -> dict:
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="pr2-drake bench fidelity", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--steps", default="0.001,0.002", help="physics steps [s], the first the "
-                   "reference (default 0.001,0.002)")
+    p.add_argument("--plants", default="0.001:lagged,0.002:similar",
+                   help="comma list of STEP[:APPROXIMATION], the first the reference")
     p.add_argument("--tasks", default="1,2,3,4,5,6")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--seconds", type=float, default=None,
                    help="simulated seconds (default: until the episode ends)")
     p.add_argument("--json", default=None, help="write the table here")
     a = p.parse_args(argv)
+    from pr2_drake.testbed import CONTACT_APPROXIMATIONS
+
     try:
-        steps = [float(s) for s in a.steps.split(",")]
+        plants = [(float(x.split(":")[0]), x.split(":")[1] if ":" in x else None)
+                  for x in a.plants.split(",")]
         tasks = [int(t) for t in a.tasks.split(",")]
     except ValueError:
-        p.error("--steps and --tasks are comma lists of numbers")
-    if len(steps) < 2 or not all(0 < s <= 0.02 for s in steps):
-        p.error("--steps needs two or more steps in (0, 0.02] s")
+        p.error("--plants is a comma list of STEP[:APPROXIMATION], --tasks of task ids")
+    if len(plants) < 2 or not all(0 < s <= 0.02 for s, _ in plants):
+        p.error("--plants needs two or more steps in (0, 0.02] s")
+    bad = [ap for _, ap in plants if ap is not None and ap not in CONTACT_APPROXIMATIONS]
+    if bad:
+        p.error(f"--plants: unknown contact approximation {bad[0]!r}; choose from "
+                f"{', '.join(CONTACT_APPROXIMATIONS)}")
     rows = []
-    print(f"{'task':>4s} {'step':>6s} {'outcome':>28s} {'peak 1 contact':>14s} "
+    print(f"{'task':>4s} {'plant':>14s} {'outcome':>28s} {'peak 1 contact':>14s} "
           f"{'peak sum':>9s} {'sum 10ms':>9s} {'CoM dev':>8s} {'sole dev':>8s} {'CoM >1cm at':>11s} "
           f"{'over':>6s}")
     for task in tasks:
-        runs = [run_one(task, a.seed, s, a.seconds) for s in steps]
-        for s, run in zip(steps, runs):
+        runs = [run_one(task, a.seed, s, a.seconds, ap) for s, ap in plants]
+        for (s, ap), run in zip(plants, runs):
             r = run["report"]
             dev = compare(runs[0], run)
             outcome = f"{r['score']:g}/{r['max_score']:g} {r['termination']} {r['sim_time']:.2f} s"
             at = "-" if math.isnan(dev["com_1cm_at"]) else f"{dev['com_1cm_at']:.2f} s"
-            print(f"{task:4d} {s * 1e3:4.1f}ms {outcome:>28s} {run['peak_single']:12.0f} N "
+            name = f"{s * 1e3:g} ms {ap or ''}"
+            print(f"{task:4d} {name:>14s} {outcome:>28s} {run['peak_single']:12.0f} N "
                   f"{run['peak_total']:7.0f} N {run['peak_10ms']:7.0f} N {100 * dev['com']:6.2f}cm "
                   f"{100 * dev['soles']:6.2f}cm {at:>11s} {dev['span']:5.1f}s", flush=True)
-            rows.append(dict(task=task, seed=a.seed, time_step=s, score=r["score"],
+            rows.append(dict(task=task, seed=a.seed, time_step=s, approximation=ap, score=r["score"],
                              max_score=r["max_score"], termination=r["termination"],
                              sim_time=r["sim_time"], peak_single=run["peak_single"],
                              peak_total=run["peak_total"], peak_10ms=run["peak_10ms"],
