@@ -303,8 +303,9 @@ def cmd_leaderboard(args) -> int:
 def cmd_controller_server(args) -> int:
     from pr2_drake.porting.controller_server import ControllerServer, ControllerServerConfig
 
-    config = ControllerServerConfig(terrain=args.terrain, request_period=args.request_period,
-                                    jump_apex=args.jump_apex)
+    config = ControllerServerConfig(terrain=args.terrain, jump_apex=args.jump_apex)
+    if args.request_period is not None:
+        config.request_period = args.request_period
     if args.walking:
         config.walking = args.walking
     if args.overrides:
@@ -411,8 +412,9 @@ def build_parser() -> argparse.ArgumentParser:
                                                      "(default params/controllers/jumping.yaml)")
     p.add_argument("--jump-apex", type=float, default=0.18,
                    help="CoM rise of a change_state 2 jump [m] (default 0.18)")
-    p.add_argument("--request-period", type=float, default=0.001,
-                   help="simulated seconds per request without a 'time' field (default 0.001)")
+    p.add_argument("--request-period", type=float, default=None,
+                   help="simulated seconds per request without a 'time' field (default: one "
+                        "physics step, 0.002)")
     p.set_defaults(func=cmd_controller_server)
 
     from pr2_drake.bench import BENCHMARKS

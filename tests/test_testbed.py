@@ -133,8 +133,9 @@ def test_velocity_mode_moves_the_joint():
     simulator, testbed, ctx = standing_simulator()
     values = np.zeros(8)
     values[4] = 1.0  # r_shoulder_y at 1 rad/s
+    damping = np.minimum(80.0, testbed.stable_gain_limits()["arms"][1])  # stable at the step
     testbed.GetInputPort("arms_command").FixValue(
-        ctx, JointGroupCommand.velocity(values, np.full(8, 80.0))
+        ctx, JointGroupCommand.velocity(values, damping)
     )
     q0 = testbed.GetOutputPort("joint_state").Eval(ctx)[Q_ARMS][4]
     simulator.AdvanceTo(0.5)
@@ -184,15 +185,22 @@ def test_bad_config_is_rejected():
         build_testbed(TestbedConfig(camera=CameraSettings(enabled=True, quality="ultra")))
 
 
-def test_physics_step_is_the_tasks_unless_the_scenario_sets_one(tmp_path):
+def test_physics_step_is_the_tasks_unless_the_scenario_sets_one(tmp_path, monkeypatch):
     from pr2_drake.scenario import load_scenario
+    from pr2_drake.tasks import get_task
     from pr2_drake.tasks.base import TaskSpec
 
-    assert TestbedConfig().time_step == 0.001  # flat ground
-    assert TestbedConfig(task=1).time_step == 0.001
+    monkeypatch.setattr(get_task(5).spec, "time_step", 0.004)  # a task YAML's time_step
+    assert TestbedConfig(task=5).time_step == 0.004
+    assert load_scenario(None, ["task=5", "plant.time_step=0.001"]).testbed_config(
+    ).time_step == 0.001
+    monkeypatch.undo()
+
+    assert TestbedConfig().time_step == 0.002  # flat ground: DEFAULT_TIME_STEP
+    assert TestbedConfig(task=1).time_step == 0.002
     assert TestbedConfig(task="object_search").time_step == 0.002  # tasks/6_*.yaml
     assert load_scenario(None, ["task=6"]).testbed_config().time_step == 0.002
-    assert load_scenario(None, ["task=6", "plant.time_step=0.001"]).testbed_config(
+    assert load_scenario(None, ["task=1", "plant.time_step=0.001"]).testbed_config(
     ).time_step == 0.001
     bad = tmp_path / "9_bad.yaml"
     bad.write_text("id: 9\nname: bad\ntitle: Bad\ntime_limit: 5.0\ntime_step: 0.5\n"

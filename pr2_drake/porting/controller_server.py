@@ -27,7 +27,7 @@ the connection, as the stream cannot be resynchronised.
 
 Time: the controller needs the simulation time. A request's ``time`` field, when present, is
 it; otherwise the server counts the connection's valid requests: the n-th (from 0) is at
-``n * request_period`` (default 0.001 s, one physics step: the original's solvers call the
+``n * request_period`` (default one physics step, 2 ms: the original's solvers call the
 server once per step). The control law runs every ``control_period`` of that time (4 ms,
 params/controllers/walking.yaml) and the torques are held in between. A time earlier than the last
 one restarts the controller (a new episode).
@@ -61,6 +61,7 @@ import numpy as np
 
 from pr2_drake.framing import LENGTH, frame
 from pr2_drake.ports import N_ARMS, N_LEGS, real_vector
+from pr2_drake.testbed import DEFAULT_TIME_STEP
 
 MAX_REQUEST_BYTES = 1 << 20
 #: Required request keys and their sizes.
@@ -99,7 +100,7 @@ class ControllerServerConfig:
     rough_drop: float = 0.025
     jumping: str = "params/controllers/jumping.yaml"
     jump_apex: float = 0.18
-    request_period: float = 0.001
+    request_period: float = DEFAULT_TIME_STEP
 
     def validate(self) -> None:
         if self.terrain not in ("flat", "rough"):
