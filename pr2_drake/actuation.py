@@ -11,8 +11,8 @@ warns once per port when it caps a commanded gain.
 
 Where the work happens: the commands change at the control rate, the robot state at every
 physics step. Everything that depends on the commands alone (validation, gains, targets, the
-clamped efforts) is a cache entry recomputed only when a command or the effort limits change
-(:class:`ActuationLaw`). Only the spring-damper rows need the state at every step, so the
+clamped efforts) is the ``actuation_law`` output, recomputed only when a command or the effort
+limits change (:class:`ActuationLaw`). Only the spring-damper rows need the state at every step, so the
 plant's actuation comes through a ``PortSwitch`` (:func:`add_actuation`, Drake's C++): while no
 group is in position or velocity mode (walking controllers with the arms in their QP) it
 forwards the cached efforts and no Python runs at the physics step; otherwise it forwards
@@ -36,7 +36,6 @@ from pydrake.systems.framework import (
     InputPort,
     InputPortIndex,
     LeafSystem,
-    ValueProducer,
 )
 from pydrake.systems.primitives import PortSwitch
 
@@ -52,23 +51,27 @@ EFFORT_SOURCE, SPRING_SOURCE = InputPortIndex(1), InputPortIndex(2)
 
 @dataclass
 class ActuationLaw:
-    """What the current commands ask for, per actuator (the plant's actuator order):
-    ``tau = clamp(ff + stiffness * (q_d - q) + damping * (v_d - v), -limit, limit)``.
+    """What the current commands ask for, per actuator (the plant's actuator order).
 
-    Effort rows have ff = the commanded effort and zero gains; position rows ff = 0, the
-    commanded (capped) gains, v_d = 0; velocity rows zero stiffness. ``effort`` is the clamped
-    ff (the actuation while ``uses_state`` is False: no group in position or velocity mode).
+    ``effort``: the clamped efforts of the groups in effort mode (zero in the other rows).
+    The m rows ``rows`` in position or velocity mode get, at the state x,
+    ``clamp(s[:m] + s[m:], -limit, limit)`` with ``s = gains * (target - x[qv])``: ``qv`` the
+    state indices of their positions then velocities, ``target`` [q_d; v_d], ``gains``
+    [stiffness; damping] (position rows: v_d = 0; velocity rows: stiffness 0).
+    ``uses_state``: m > 0.
     """
 
-    ff: np.ndarray
-    stiffness: np.ndarray
-    q_d: np.ndarray
-    damping: np.ndarray
-    v_d: np.ndarray
+    effort: np.ndarray
+    rows: np.ndarray
+    qv: np.ndarray
+    target: np.ndarray
+    gains: np.ndarray
     limit: np.ndarray
     neg_limit: np.ndarray
-    effort: np.ndarray
-    uses_state: bool
+
+    @property
+    def uses_state(self) -> bool:
+        return len(self.rows) > 0
 
 
 class ActuationAdapter(LeafSystem):
@@ -84,6 +87,7 @@ class ActuationAdapter(LeafSystem):
         spring_actuation: the whole law, every group, at the current state.
         actuation_source: the PortSwitch input to use (:data:`EFFORT_SOURCE` or
             :data:`SPRING_SOURCE`).
+        actuation_law: :class:`ActuationLaw`, what the commands ask for.
 
     An unconnected command port means zero effort for that group.
 
@@ -141,17 +145,14 @@ class ActuationAdapter(LeafSystem):
         self._limits = self.DeclareNumericParameter(BasicVector(np.concatenate(limits)))
         self._gains_cache = None
         n_act = self._n_act
-        empty = ActuationLaw(*(np.zeros(n_act) for _ in range(8)), uses_state=False)
-        law = self.DeclareCacheEntry(
-            "actuation law (commands, gains, clamped efforts)",
-            ValueProducer(allocate=lambda: AbstractValue.Make(empty),
-                          calc=weak_calc(self._calc_law)),
-            {g["port"].ticket() for g in self._group_list} | {self.all_parameters_ticket()},
-        )
-        # The index, not the entry: a stored CacheEntry keeps its system alive through a
-        # reference the garbage collector cannot see (pr2_drake.lifetime).
-        self._law_index = law.cache_index()
-        law_only = {law.ticket()}
+        none = np.zeros(0, dtype=int)
+        empty = ActuationLaw(np.zeros(n_act), none, none, *(np.zeros(0) for _ in range(4)))
+        # Computed when a command or the effort limits change, not at every physics step.
+        self._law = self.DeclareAbstractOutputPort(
+            "actuation_law", lambda: AbstractValue.Make(empty), weak_calc(self._calc_law),
+            prerequisites_of_calc={g["port"].ticket() for g in self._group_list}
+            | {self.all_parameters_ticket()})
+        law_only = {self._law.cache_entry().ticket()}
         self.DeclareVectorOutputPort("effort_actuation", n_act, weak_calc(self._calc_effort),
                                      prerequisites_of_calc=law_only)
         self.DeclareVectorOutputPort("spring_actuation", n_act, weak_calc(self._calc_spring))
@@ -175,11 +176,10 @@ class ActuationAdapter(LeafSystem):
 
     # -- the law, once per command ------------------------------------------------------------
     def _calc_law(self, context, value: AbstractValue) -> None:
-        n = self._n_act
-        ff, k, q_d, d, v_d = (np.zeros(n) for _ in range(5))
-        limit = np.empty(n)
+        limit = np.empty(self._n_act)
         limit[self._actuators] = self.effort_limits(context)
-        uses_state = False
+        ff = np.zeros(self._n_act)
+        rows, qv_q, qv_v, q_d, v_d, k, d = [], [], [], [], [], [], []
         for g in self._group_list:
             port = g["port"]
             if not port.HasValue(context):  # neither connected nor fixed: zero effort
@@ -189,37 +189,43 @@ class ActuationAdapter(LeafSystem):
             if mode == "effort":
                 ff[act] = values
                 continue
-            uses_state = True
-            d[act] = damping
-            if mode == "velocity":
-                v_d[act] = values
-            else:
-                k[act] = stiffness
-                q_d[act] = values
-        effort = np.clip(ff, -limit, limit)
-        value.set_value(ActuationLaw(ff, k, q_d, d, v_d, limit, -limit, effort, uses_state))
-
-    def _eval_law(self, context) -> ActuationLaw:
-        return self.get_cache_entry(self._law_index).Eval(context)
+            n = g["n"]
+            rows.append(act)
+            qv_q.append(self._q_of_act[act])
+            qv_v.append(self._v_of_act[act])
+            zero = np.zeros(n)
+            velocity = mode == "velocity"
+            q_d.append(zero if velocity else values)
+            v_d.append(values if velocity else zero)
+            k.append(zero if velocity else np.broadcast_to(stiffness, (n,)))
+            d.append(np.broadcast_to(damping, (n,)))
+        effort = np.clip(ff, -limit, limit)  # zero in the spring-damper rows
+        if not rows:
+            none = np.zeros(0, dtype=int)
+            value.set_value(ActuationLaw(effort, none, none, *(np.zeros(0) for _ in range(4))))
+            return
+        rows_ = np.concatenate(rows)
+        value.set_value(ActuationLaw(effort, rows_, np.concatenate(qv_q + qv_v),
+                                     np.concatenate(q_d + v_d), np.concatenate(k + d),
+                                     limit[rows_], -limit[rows_]))
 
     def _calc_effort(self, context, output: BasicVector) -> None:
-        output.SetFromVector(self._eval_law(context).effort)
+        output.SetFromVector(self._law.Eval(context).effort)
 
     def _calc_source(self, context, output) -> None:
-        output.set_value(SPRING_SOURCE if self._eval_law(context).uses_state else EFFORT_SOURCE)
+        output.set_value(SPRING_SOURCE if self._law.Eval(context).uses_state else EFFORT_SOURCE)
 
     def _calc_spring(self, context, output: BasicVector) -> None:
         # Every physics step while a group is in position or velocity mode.
-        law: ActuationLaw = self._eval_law(context)
-        x = self._state_port.Eval(context)
-        tau = law.q_d - x[self._q_of_act]
-        tau *= law.stiffness
-        dv = law.v_d - x[self._v_of_act]
-        dv *= law.damping
-        tau += dv
-        tau += law.ff
-        np.minimum(tau, law.limit, out=tau)
-        np.maximum(tau, law.neg_limit, out=tau)
+        law: ActuationLaw = self._law.Eval(context)
+        s = law.target - self._state_port.Eval(context)[law.qv]
+        s *= law.gains
+        m = len(law.rows)
+        tau_s = s[:m] + s[m:]  # stiffness (q_d - q) + damping (v_d - v)
+        np.minimum(tau_s, law.limit, out=tau_s)
+        np.maximum(tau_s, law.neg_limit, out=tau_s)
+        tau = law.effort.copy()
+        tau[law.rows] = tau_s
         output.SetFromVector(tau)
 
     def _prepared(self, cmd: JointGroupCommand, g: dict):
