@@ -22,6 +22,7 @@ Robot facts (mass, gravity, peak torques, joint ranges) come from the model's pl
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -58,6 +59,10 @@ STATUS_FIELDS = ("qp_ok", "qp_failures", "qp_iterations", "phase", "stance_side"
 
 def check_command(command, port: str = COMMAND_PORT) -> np.ndarray:
     """A velocity command (vx, vy, yaw_rate) as a float array, or ValueError naming the port."""
+    if type(command) is np.ndarray and command.shape == (3,) and command.dtype == np.float64:
+        x, y, z = command.tolist()  # the common case (a port's value): no conversions
+        if math.isfinite(x) and math.isfinite(y) and math.isfinite(z):
+            return command
     try:
         cmd = np.asarray(command, dtype=float).reshape(-1)
     except (TypeError, ValueError) as err:

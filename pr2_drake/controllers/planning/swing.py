@@ -85,14 +85,15 @@ class SwingTrajectory:
 
     def retime(self, t: float, landing_time: float) -> None:
         """Bring the landing forward to ``landing_time`` (absolute) from time t."""
-        self._advance(t)
+        self.advance(t)
         remaining = landing_time - t
         if remaining <= 1e-3 or self._tau >= 1.0:
             return
         self._rate = (1.0 - self._tau) / remaining
         self.t_land = landing_time - self.t0
 
-    def _advance(self, t: float) -> None:
+    def advance(self, t: float) -> None:
+        """Move the swing phase on to time t (``progress``); :meth:`evaluate` does it too."""
         dt = t - self._t
         if dt > 0:
             self._tau = min(self._tau + self._rate * dt, 1.0)
@@ -100,7 +101,7 @@ class SwingTrajectory:
 
     def evaluate(self, t: float):
         """p, v, a (3 each, W) and yaw, yaw rate of the desired sole at time t."""
-        self._advance(t)
+        self.advance(t)
         tau, r = self._tau, self._rate
         if self.clear_z is not None:
             return self._evaluate_clearance(t, tau, r)
