@@ -5,18 +5,20 @@ Angles in rad, about the world's z axis (up); a heading (yaw) is measured from +
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
 def rot_z(yaw: float) -> np.ndarray:
     """R_WA (3 x 3) of a frame A turned by ``yaw`` about z."""
-    c, s = np.cos(yaw), np.sin(yaw)
+    c, s = math.cos(yaw), math.sin(yaw)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def rot2(yaw: float) -> np.ndarray:
     """The 2 x 2 rotation by ``yaw`` in the xy plane."""
-    c, s = np.cos(yaw), np.sin(yaw)
+    c, s = math.cos(yaw), math.sin(yaw)
     return np.array([[c, -s], [s, c]])
 
 

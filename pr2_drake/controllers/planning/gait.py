@@ -229,10 +229,15 @@ class GaitPlanner:
         # CoM.
         ground = self._ground_z()
         if self.phase == Phase.STAND:
-            target = 0.5 * (zmp_point(self.footholds[0], g) + zmp_point(self.footholds[1], g))
+            # (Scalar math per component, in the order the 2-vector expressions had.)
+            (ax, ay), (bx, by) = (zmp_point(f, g).tolist() for f in self.footholds)
+            tx, ty = 0.5 * (ax + bx), 0.5 * (ay + by)
             if self.com_offset is not None:
-                target = target + self._clip_lean(self.com_offset)
-            a_xy = p.com_xy.kp * (target - com[:2]) - p.com_xy.kd * comd[:2]
+                lx, ly = self._clip_lean(self.com_offset).tolist()
+                tx, ty = tx + lx, ty + ly
+            kp, kd = p.com_xy.kp, p.com_xy.kd
+            a_xy = np.array([kp * (tx - float(com[0])) - kd * float(comd[0]),
+                             kp * (ty - float(com[1])) - kd * float(comd[1])])
         elif self.phase in (Phase.START, Phase.DOUBLE):
             a_xy = self._shift_comdd(t, com, comd)
         elif self.phase == Phase.SINGLE:
@@ -399,19 +404,24 @@ class GaitPlanner:
         tc = min(max(tau, 0.0), 1.0)
         sd = tc**3 * (10 - 15 * tc + 6 * tc * tc)
         dsd = 30 * tc * tc * (1 - tc) ** 2 / T
-        xi_d = xi0 + (xi1 - xi0) * sd
-        xid_d = (xi1 - xi0) * dsd
-        xi = com[:2] + comd[:2] / omega
-        zmp = xi - (xid_d - g.dcm_track_gain * (xi - xi_d)) / omega
+        # (Scalar math per component, in the order the 2-vector expressions had.)
+        k = g.dcm_track_gain
+        com_xy = (float(com[0]), float(com[1]))
+        zmp = []
+        for s0, s1, c, cd in zip(xi0.tolist(), xi1.tolist(), com_xy, comd[:2].tolist()):
+            xi = c + cd / omega
+            zmp.append(xi - ((s1 - s0) * dsd - k * (xi - (s0 + (s1 - s0) * sd))) / omega)
         # Keep the ZMP inside the double-support region (heading frame box around the soles).
         R = self._heading_rot2()
         RT = R.T
         a, b = (RT @ zmp_point(f, g) for f in self.footholds)
-        z_H = RT @ zmp
+        z_H = RT @ np.array(zmp)
         half = 0.5 * self.model.foot_length - 0.02
         z_H[0] = min(max(z_H[0], min(a[0], b[0]) - half), max(a[0], b[0]) + half)
         z_H[1] = min(max(z_H[1], min(a[1], b[1])), max(a[1], b[1]))
-        return omega**2 * (com[:2] - R @ z_H)
+        w2 = omega**2
+        zx, zy = (R @ z_H).tolist()
+        return np.array([w2 * (com_xy[0] - zx), w2 * (com_xy[1] - zy)])
 
     def _heading_rot2(self) -> np.ndarray:
         """rot2(heading), the same matrix while the heading holds (treat as read-only)."""
@@ -430,14 +440,19 @@ class GaitPlanner:
         g = self.params.gait
         omega = math.sqrt(self.gravity / g.com_height)
         foot = self.footholds[self.stance]
-        p_st = zmp_point(foot, g)
-        xi = com[:2] + comd[:2] / omega
-        xi_ref = p_st + (self.start_dcm[2] - p_st) * np.exp(omega * (t - self.t_phase))
-        axis = np.array([math.cos(foot[3]), math.sin(foot[3])])
-        dx = (1.0 + g.ankle_dcm_gain / omega) * float(axis @ (xi - xi_ref))
+        # (Scalar math per component, in the order the 2-vector expressions had.)
+        px, py = zmp_point(foot, g).tolist()
+        cx, cy = float(com[0]), float(com[1])
+        growth = np.exp(omega * (t - self.t_phase))
+        sx, sy = self.start_dcm[2].tolist()
+        xr, yr = px + (sx - px) * growth, py + (sy - py) * growth
+        ca, sa = math.cos(foot[3]), math.sin(foot[3])
+        xi_err = np.array([cx + float(comd[0]) / omega - xr, cy + float(comd[1]) / omega - yr])
+        dx = (1.0 + g.ankle_dcm_gain / omega) * float(np.array([ca, sa]) @ xi_err)
         lim = g.ankle_zmp_range
-        zmp = p_st + axis * min(max(dx, -lim), lim)
-        return omega * omega * (com[:2] - zmp)
+        d = min(max(dx, -lim), lim)
+        w2 = omega * omega
+        return np.array([w2 * (cx - (px + ca * d)), w2 * (cy - (py + sa * d))])
 
     def _lift_off(self, t: float, com, comd) -> None:
         g = self.params.gait
