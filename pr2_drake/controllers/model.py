@@ -135,7 +135,7 @@ class WholeBodyModel:
         """
         if self._h is None:
             M_t = self.mass_matrix()[self._com_rows]
-            self._h = self._bias_term() - M_t.T @ self._g_W
+            self._h = self._bias_term() - np.dot(M_t.T, self._g_W)
         return self._h
 
     def com(self):
@@ -151,7 +151,7 @@ class WholeBodyModel:
             rows = self._com_rows
             J = self.mass_matrix()[rows] * self._inv_mass
             jdv = self._bias_term()[rows] * self._inv_mass
-            self._com = (p, J @ self.v, J, jdv)
+            self._com = (p, np.dot(J, self.v), J, jdv)
         return self._com
 
     def sole_pose(self, side: int) -> RigidTransform:
@@ -169,7 +169,7 @@ class WholeBodyModel:
                 ctx, JacobianWrtVariable.kV, S, self._zero3, W, W)
             jdv = self.plant.CalcBiasSpatialAcceleration(
                 ctx, JacobianWrtVariable.kV, S, self._zero3, W, W).get_coeffs()
-            self._sole[side] = (self.sole_pose(side), J @ self.v, J, jdv)
+            self._sole[side] = (self.sole_pose(side), np.dot(J, self.v), J, jdv)
         return self._sole[side]
 
     def shoulder_position(self, side: int) -> np.ndarray:
@@ -185,7 +185,7 @@ class WholeBodyModel:
             jdv = self.plant.CalcBiasTranslationalAcceleration(
                 ctx, JacobianWrtVariable.kV, H, self._zero3, W, W).reshape(-1)
             p = H.CalcPoseInWorld(ctx).translation()
-            self._hand[side] = (p, J @ self.v, J, jdv)
+            self._hand[side] = (p, np.dot(J, self.v), J, jdv)
         return self._hand[side]
 
     def hand_rotation(self, side: int):
@@ -197,7 +197,7 @@ class WholeBodyModel:
             jdv = self.plant.CalcBiasSpatialAcceleration(
                 ctx, JacobianWrtVariable.kV, H, self._zero3, W, W).rotational()
             R = H.CalcPoseInWorld(ctx).rotation().matrix()
-            self._hand_rot[side] = (R, J @ self.v, J, np.asarray(jdv).reshape(-1))
+            self._hand_rot[side] = (R, np.dot(J, self.v), J, np.asarray(jdv).reshape(-1))
         return self._hand_rot[side]
 
     def contact_points(self, side: int):
@@ -212,7 +212,7 @@ class WholeBodyModel:
     def contact_heights(self, side: int) -> np.ndarray:
         """z in W of the contact points of one sole [m]."""
         X = self.sole_pose(side)
-        return (X.rotation().matrix() @ self.p_SC)[2] + X.translation()[2]
+        return np.dot(X.rotation().matrix(), self.p_SC)[2] + X.translation()[2]
 
     def base_pose(self) -> RigidTransform:
         return self.base.EvalPoseInWorld(self.context)

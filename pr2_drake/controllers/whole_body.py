@@ -370,8 +370,8 @@ class WholeBodyController:
                     self._hand_lo[r] = 0.0
                     self._hand_hi[r] = 0.0
             hand_args = dict(J_hands=self._hand_J, hand_bounds=(self._hand_lo, self._hand_hi),
-                             hand_prior=np.r_[plan.hands[0].force_prior,
-                                              plan.hands[1].force_prior])
+                             hand_prior=np.concatenate((plan.hands[0].force_prior,
+                                                        plan.hands[1].force_prior)))
         if timed:
             t2 = time.perf_counter()
         res = self.qp.solve(m.mass_matrix(), m.bias(), self.contacts.J_all, cost.H, cost.g,

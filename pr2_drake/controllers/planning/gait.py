@@ -303,7 +303,7 @@ class GaitPlanner:
         pitch_d, pitchd_d = self.swing.pitch()
         R_d = rot_z(yaw_d)
         if pitch_d != 0.0:  # landing pitched on known terrain
-            R_d = R_d @ _y_rotation(pitch_d)
+            R_d = np.dot(R_d, _y_rotation(pitch_d))
         w_d = np.array([-math.sin(yaw_d) * pitchd_d, math.cos(yaw_d) * pitchd_d, yawd_d])
         # Blocked descent (early contact): above the curve and no longer moving down.
         self.swing_z_error = (float(pos[2] - p_d[2])
@@ -414,13 +414,13 @@ class GaitPlanner:
         # Keep the ZMP inside the double-support region (heading frame box around the soles).
         R = self._heading_rot2()
         RT = R.T
-        a, b = (RT @ zmp_point(f, g) for f in self.footholds)
-        z_H = RT @ np.array(zmp)
+        a, b = (np.dot(RT, zmp_point(f, g)) for f in self.footholds)
+        z_H = np.dot(RT, np.array(zmp))
         half = 0.5 * self.model.foot_length - 0.02
         z_H[0] = min(max(z_H[0], min(a[0], b[0]) - half), max(a[0], b[0]) + half)
         z_H[1] = min(max(z_H[1], min(a[1], b[1])), max(a[1], b[1]))
         w2 = omega**2
-        zx, zy = (R @ z_H).tolist()
+        zx, zy = np.dot(R, z_H).tolist()
         return np.array([w2 * (com_xy[0] - zx), w2 * (com_xy[1] - zy)])
 
     def _heading_rot2(self) -> np.ndarray:
@@ -448,7 +448,7 @@ class GaitPlanner:
         xr, yr = px + (sx - px) * growth, py + (sy - py) * growth
         ca, sa = math.cos(foot[3]), math.sin(foot[3])
         xi_err = np.array([cx + float(comd[0]) / omega - xr, cy + float(comd[1]) / omega - yr])
-        dx = (1.0 + g.ankle_dcm_gain / omega) * float(np.array([ca, sa]) @ xi_err)
+        dx = (1.0 + g.ankle_dcm_gain / omega) * float(np.dot(np.array([ca, sa]), xi_err))
         lim = g.ankle_zmp_range
         d = min(max(dx, -lim), lim)
         w2 = omega * omega

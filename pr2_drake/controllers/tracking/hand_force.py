@@ -46,7 +46,7 @@ class HandForceEstimator:
         v = m.v
         dt = t - self._t_prev
         ok = (self._v_prev is not None and dt > 1e-6 and tau_arms is not None
-              and np.all(np.isfinite(tau_arms)))
+              and np.isfinite(tau_arms).all())
         if ok and (attached[0] or attached[1]):
             vdot = (v - self._v_prev) / dt
             M, h = m.mass_matrix(), m.bias()

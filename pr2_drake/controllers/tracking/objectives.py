@@ -26,10 +26,10 @@ from pr2_drake.controllers.model import WholeBodyModel, index_or_slice
 
 def rotation_error(R_d: np.ndarray, R: np.ndarray) -> np.ndarray:
     """Axis-angle vector (in W) of R_d R^T: the rotation that takes R to R_d [rad]."""
-    (e00, e01, e02), (e10, e11, e12), (e20, e21, e22) = (R_d @ R.T).tolist()
+    (e00, e01, e02), (e10, e11, e12), (e20, e21, e22) = np.dot(R_d, R.T).tolist()
     v = np.array([0.5 * (e21 - e12), 0.5 * (e02 - e20), 0.5 * (e10 - e01)])
     c = 0.5 * (e00 + e11 + e22 - 1.0)
-    s = math.sqrt(v @ v)
+    s = math.sqrt(np.dot(v, v))
     if s < 1e-9:
         if c > 0:
             return v
@@ -63,8 +63,9 @@ class ObjectiveCost:
         if self.record:
             self.rows.append((J, a, w))
         Jw = J * w[:, None]
-        self.H += Jw.T @ J
-        self.g -= Jw.T @ a
+        JwT = Jw.T
+        self.H += np.dot(JwT, J)
+        self.g -= np.dot(JwT, a)
 
     def add_selection(self, idx: np.ndarray | slice, a: np.ndarray, w: np.ndarray) -> None:
         """:meth:`add` for J = rows ``idx`` of the identity (same sums, no matrix products)."""
@@ -110,7 +111,7 @@ class ComObjective(Objective):
         a = np.array([ax - j0, ay - j1, a_z - j2])  # desired minus Jdot v
         if plan.com_frame_yaw is not None:
             RsT = rot_z(plan.com_frame_yaw).T
-            cost.add(RsT @ J, RsT @ a, self.w_single)
+            cost.add(np.dot(RsT, J), np.dot(RsT, a), self.w_single)
         else:
             cost.add(J, a, self.w)
 
@@ -163,21 +164,21 @@ class SoleContactObjective(Objective):
             c = plan.contacts[side]
             if not c.active:
                 continue
-            a_c = -self.qp.contact_kd * (Jc @ m.v) - jdv_c
+            a_c = -self.qp.contact_kd * np.dot(Jc, m.v) - jdv_c
             kr = slice(self.n_kin_foot * side, self.n_kin_foot * (side + 1))
             E = self.constraint_rows(m, side)
-            EJ = E @ Jc
+            EJ = np.dot(E, Jc)
             self.J_kin[kr] = EJ
             if c.hard:
-                self.a_kin[kr] = E @ a_c
+                self.a_kin[kr] = np.dot(E, a_c)
             else:
-                cost.add(EJ, E @ a_c, self.w_soft)
+                cost.add(EJ, np.dot(E, a_c), self.w_soft)
 
     def constraint_rows(self, m: WholeBodyModel, side: int) -> np.ndarray:
         """Selection E (n_kin_foot x 3n) of independent rows of a sole's point accelerations
         (this controller's array for the sole, rewritten on the next call: copy to keep)."""
         X = m.sole_pose(side)
-        P = X.rotation().matrix() @ m.p_SC  # point offsets in W (3 x n)
+        P = np.dot(X.rotation().matrix(), m.p_SC)  # point offsets in W (3 x n)
         n = m.n_points
         E = self._E[side]
         (x0, x1, *_), (y0, y1, *_), (z0, z1, *_) = P.tolist()
@@ -225,7 +226,7 @@ class SwingSoleObjective(Objective):
         a_ang = np.array([kp * ei + kd * (wd - wi) - ji for ei, wd, wi, ji in
                           zip(e, s.w.tolist(), (w0, w1, w2), j[:3])])
         RT = s.R.T
-        cost.add(RT @ J[:3], RT @ a_ang, self.w_rot)
+        cost.add(np.dot(RT, J[:3]), np.dot(RT, a_ang), self.w_rot)
         cost.add(J[3:], a_lin, self.w_pos)
 
 

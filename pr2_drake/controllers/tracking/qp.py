@@ -389,12 +389,12 @@ class WholeBodyQp:
         the arm torques likewise when the QP drives the arms."""
         nv = self.nv
         nb, nl = len(self.base_v), self._nl
-        tau = self.A[nb:nl] @ x + hd[nb:nl]
+        tau = np.dot(self.A[nb:nl], x) + hd[nb:nl]
         np.minimum(tau, self.effort, out=tau)
         np.maximum(tau, -self.effort, out=tau)
         tau_arms = None
         if self.arm_effort is not None:
-            tau_arms = self.A[nl:self.n_dyn] @ x + hd[nl:]
+            tau_arms = np.dot(self.A[nl:self.n_dyn], x) + hd[nl:]
             np.minimum(tau_arms, self.arm_effort, out=tau_arms)
             np.maximum(tau_arms, -self.arm_effort, out=tau_arms)
             self.last_tau_arms = tau_arms
