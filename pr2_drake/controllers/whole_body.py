@@ -343,7 +343,7 @@ class WholeBodyController:
         box -= v[self.box_v] * hz
         box *= 2.0
         box /= hz * hz
-        a_lo, a_hi = box
+        a_lo, a_hi = box[0], box[1]
         bad = a_lo > a_hi
         if bad.any():
             mid = 0.5 * (a_lo + a_hi)

@@ -349,7 +349,7 @@ class WholeBodyQp:
         # (DAQP copies its inputs: the constant parts of P and A stay intact.) Typically
         # 2-10 active-set iterations; the cap bounds a pathological tick.
         x, _, exitflag, info = daqp.solve(self.P, self.q, self.A, u, l, sense, iter_limit=1000)
-        if exitflag in _DAQP_OK and np.isfinite(x.sum()):
+        if exitflag in _DAQP_OK and math.isfinite(x.sum()):
             return self._result(x, hd, in_contact, "daqp", int(info["iterations"]))
         return None
 
