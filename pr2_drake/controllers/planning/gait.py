@@ -37,7 +37,7 @@ import math
 
 import numpy as np
 
-from pr2_drake.controllers.frames import rot2, rot_z, wrap, yaw_of
+from pr2_drake.controllers.frames import rot2, rot_y, rot_z, wrap, yaw_of
 from pr2_drake.controllers.planning.com_plan import ComPlanner, zmp_point
 from pr2_drake.controllers.planning.footsteps import (
     SIDE_SIGN,
@@ -51,13 +51,6 @@ from pr2_drake.controllers.planning.step_adjust import choose_step
 from pr2_drake.controllers.planning.swing import SwingTrajectory
 from pr2_drake.controllers.walking_params import WalkingParams
 from pr2_drake.controllers.model import WholeBodyModel
-
-
-def _y_rotation(angle: float) -> np.ndarray:
-    """RotationMatrix.MakeYRotation(angle).matrix() (the same numbers and column-major layout,
-    without the pydrake objects)."""
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]], order="F")
 
 
 class Phase(enum.IntEnum):
@@ -114,8 +107,6 @@ class GaitPlanner:
         self.com_offset = None
         self._pelvis_yaw: float | None = None
         self._pelvis_R = None
-        self._rot2_yaw: float | None = None
-        self._rot2 = None
 
     def clip_command(self, command: np.ndarray) -> np.ndarray:
         """Clip a checked command (vx, vy, yaw_rate) to the configured limits."""
@@ -303,7 +294,7 @@ class GaitPlanner:
         pitch_d, pitchd_d = self.swing.pitch()
         R_d = rot_z(yaw_d)
         if pitch_d != 0.0:  # landing pitched on known terrain
-            R_d = np.dot(R_d, _y_rotation(pitch_d))
+            R_d = np.dot(R_d, rot_y(pitch_d))
         w_d = np.array([-math.sin(yaw_d) * pitchd_d, math.cos(yaw_d) * pitchd_d, yawd_d])
         # Blocked descent (early contact): above the curve and no longer moving down.
         self.swing_z_error = (float(pos[2] - p_d[2])
@@ -412,7 +403,7 @@ class GaitPlanner:
             xi = c + cd / omega
             zmp.append(xi - ((s1 - s0) * dsd - k * (xi - (s0 + (s1 - s0) * sd))) / omega)
         # Keep the ZMP inside the double-support region (heading frame box around the soles).
-        R = self._heading_rot2()
+        R = rot2(self.heading)
         RT = R.T
         a, b = (np.dot(RT, zmp_point(f, g)) for f in self.footholds)
         z_H = np.dot(RT, np.array(zmp))
@@ -422,13 +413,6 @@ class GaitPlanner:
         w2 = omega**2
         zx, zy = np.dot(R, z_H).tolist()
         return np.array([w2 * (com_xy[0] - zx), w2 * (com_xy[1] - zy)])
-
-    def _heading_rot2(self) -> np.ndarray:
-        """rot2(heading), the same matrix while the heading holds (treat as read-only)."""
-        if self.heading != self._rot2_yaw:
-            self._rot2_yaw = self.heading
-            self._rot2 = rot2(self.heading)
-        return self._rot2
 
     def _single_comdd(self, t: float, com, comd) -> np.ndarray:
         """CoM acceleration (xy) in single support: LIPM about a ZMP on the stance sole.

@@ -176,19 +176,23 @@ class WholeBodyQp:
         self.last_tau_arms = np.zeros(len(self.arm_v))
         self._P_vdiag = self.P.reshape(-1)[:nv * self.n:self.n + 1]  # view: diag of the vdot block
         assert np.shares_memory(self._P_vdiag, self.P)
-        # Per-tick buffers: the bounds given to the solver, and the offsets of the dynamics
-        # rows' bounds from -h (0 base; -+ the peak torques; the applied arm torques).
+        self._init_tick_buffers()
+
+    def _init_tick_buffers(self) -> None:
+        """Per-tick buffers: the bounds given to the solver, the offsets of the dynamics rows'
+        bounds from -h (0 base; -+ the peak torques; the applied arm torques), the DAQP sense
+        by (l == u), and the contact columns per contact pattern."""
         self._l = np.empty(self.m)
         self._u = np.empty(self.m)
-        self._dyn_lo = np.zeros(n_dyn)
-        self._dyn_hi = np.zeros(n_dyn)
+        self._dyn_lo = np.zeros(self.n_dyn)
+        self._dyn_hi = np.zeros(self.n_dyn)
         nb, nl = len(self.base_v), self._nl
         self._dyn_lo[nb:nl] = -self.effort
         self._dyn_hi[nb:nl] = self.effort
         if self.arm_effort is not None:
             self._dyn_lo[nl:] = -self.arm_effort
             self._dyn_hi[nl:] = self.arm_effort
-        self._sense_of = np.array([0, _DAQP_EQUALITY], dtype=np.intc)  # by (l == u)
+        self._sense_of = np.array([0, _DAQP_EQUALITY], dtype=np.intc)
         self._contact_cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
 
     def _setup(self) -> None:
