@@ -197,7 +197,8 @@ class WholeBodyModel:
             jdv = self.plant.CalcBiasSpatialAcceleration(
                 ctx, JacobianWrtVariable.kV, H, self._zero3, W, W).rotational()
             R = H.CalcPoseInWorld(ctx).rotation().matrix()
-            self._hand_rot[side] = (R, np.dot(J, self.v), J, np.asarray(jdv).reshape(-1))
+            # (J is a strided view: keep @, whose sum for it differs from np.dot's)
+            self._hand_rot[side] = (R, J @ self.v, J, np.asarray(jdv).reshape(-1))
         return self._hand_rot[side]
 
     def contact_points(self, side: int):
