@@ -38,14 +38,15 @@ def reseed(episode: Episode, seed: int) -> bool:
         return False
     tb.set_start(start, seed)
     episode.scenario = replace(episode.scenario, seed=int(seed))
+    if getattr(episode, "physics", None) is not None:  # domain randomisation: the seed's draw
+        episode.redraw_physics(int(seed))
     return True
 
 
 def restart(episode: Episode) -> None:
     """Put ``episode``'s Context back to time 0 and the default state and parameters (fixed
     input values stay); then ``episode.initialize()``."""
-    episode.diagram.SetDefaultContext(episode.context)
-    episode.context.SetTime(0.0)
+    episode.context.SetTimeStateAndParametersFrom(episode.diagram.CreateDefaultContext())
 
 
 class EpisodeOver(RuntimeError):

@@ -264,7 +264,7 @@ class CommandLevel(Diagram):
             builder.ExportOutput(decoder.GetOutputPort("release"), "release")
         builder.ExportOutput(decoder.GetOutputPort("velocity_command"), "velocity_command")
         builder.BuildInto(self)
-        self._controller = controller
+        self.controller = controller
 
     def connect(self, builder: DiagramBuilder, testbed) -> None:
         """Connect this block (added to ``builder``) to the testbed by port name; ``action``
@@ -281,4 +281,4 @@ class CommandLevel(Diagram):
     def reset(self) -> None:
         """Forget the controller's memory kept outside the Context (its gait, QP warm start,
         jump planner): what a fresh build starts with."""
-        self._controller.reset()
+        self.controller.reset()

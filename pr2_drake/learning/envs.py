@@ -51,6 +51,11 @@ class _LearningEnv(gym.Env):
         scenario: everything else about the episodes (physics, limits); its task and seed
             are replaced.
         render_mode: None or "rgb_array".
+        reuse: reset to a new seed in place where the task allows it (default); False:
+            rebuild the episode at every new seed.
+        randomize: turn on the scenario's domain randomisation (its ``randomize`` section,
+            with its defaults unless ``scenario`` sets them); each episode's draw is in
+            ``info["physics"]`` at reset.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
@@ -59,8 +64,9 @@ class _LearningEnv(gym.Env):
     def __init__(self, task: int | str = 1, *, control_dt: float | None = None,
                  reward: str = "dense", camera: bool = False, camera_scale: float = 0.25,
                  seconds: float | None = None, scenario: Scenario | None = None,
-                 render_mode: str | None = None):
+                 render_mode: str | None = None, reuse: bool = True, randomize: bool = False):
         super().__init__()
+        self._reuse = bool(reuse)
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.control_dt = float(control_dt or self.DEFAULT_DT)
@@ -68,10 +74,12 @@ class _LearningEnv(gym.Env):
         changes: dict[str, Any] = {"task": task, "seed": 0}
         if seconds is not None:
             changes["seconds"] = float(seconds)
+        if randomize:
+            changes["randomize"] = replace(base.randomize, enabled=True)
         if camera:
-            from pr2_drake.run import _task_camera
+            from pr2_drake.run import task_camera
 
-            changes["camera"] = replace(base.camera or _task_camera(replace(base, **changes)),
+            changes["camera"] = replace(base.camera or task_camera(replace(base, **changes)),
                                         enabled=True)
         self._scenario = replace(base, **changes)
         self._scenario.validate()
@@ -109,7 +117,7 @@ class _LearningEnv(gym.Env):
         super().reset(seed=seed)
         episode_seed = int(seed) if seed is not None else int(self.np_random.integers(SEED_RANGE))
         ep = self._episode
-        if episode_seed != ep.scenario.seed and not reseed(ep, episode_seed):
+        if episode_seed != ep.scenario.seed and not (self._reuse and reseed(ep, episode_seed)):
             self._build(episode_seed)
             ep = self._episode
         restart(ep)
@@ -118,6 +126,8 @@ class _LearningEnv(gym.Env):
         self._reward.reset(ep, self.action_space.shape[0])
         info = self._info({})
         info["action_names"] = self.action_names
+        if getattr(ep, "physics", None) is not None:
+            info["physics"] = ep.physics.report()
         return self._observe(), info
 
     def step(self, action):
@@ -269,8 +279,9 @@ class JointEnv(_LearningEnv):
     The action, each entry in [-1, 1]: the legs' 10 values, then (``gains``) their 10
     stiffnesses and 10 dampings, then the arms' 8 values (and gains), then pick_left,
     pick_right, release (> 0: send it). Values by mode (``legs_mode``, ``arms_mode``):
-    "position" -1..1 -> the joint's range [rad]; "velocity" -> +- its speed limit [rad/s];
-    "effort" -> +- its peak torque [Nm]. Gains: -1..1 -> 0..the testbed's stable maximum
+    "position": the nominal standing angle + the value x half the joint's range, clipped to
+    the range [rad] (0 holds the standing pose); "velocity": x its speed limit [rad/s];
+    "effort": x its peak torque [Nm]. Gains: -1..1 -> 0..the testbed's stable maximum
     (:meth:`pr2_drake.testbed.Testbed.stable_gain_limits`); without ``gains`` the testbed's
     default gains apply.
     """
@@ -299,8 +310,12 @@ class JointEnv(_LearningEnv):
             lo, hi = params.position_limits(group)
             speed = np.array([j.velocity for j in params.group(group)])
             effort = params.effort_limits(group)
-            self._scale[group] = {"position": (lo, hi), "velocity": (-speed, speed),
-                                  "effort": (-effort, effort)}[self._modes[group]]
+            zero = np.zeros_like(lo)
+            # (offset, scale, lower, upper): value = clip(offset + a * scale, lower, upper)
+            self._scale[group] = {
+                "position": (params.default_positions(group), 0.5 * (hi - lo), lo, hi),
+                "velocity": (zero, speed, -speed, speed),
+                "effort": (zero, effort, -effort, effort)}[self._modes[group]]
         self._gain_max = self._episode.testbed.stable_gain_limits()
 
     def _reset_blocks(self) -> None:
@@ -318,8 +333,8 @@ class JointEnv(_LearningEnv):
         ctx, ports = self._episode.tb_context, self._ports
         k = 0
         for group, n in (("legs", N_LEGS), ("arms", N_ARMS)):
-            lo, hi = self._scale[group]
-            values = lo + 0.5 * (action[k:k + n] + 1.0) * (hi - lo)
+            offset, scale, lo, hi = self._scale[group]
+            values = np.clip(offset + action[k:k + n] * scale, lo, hi)
             k += n
             stiffness = damping = None
             if self._gains:
