@@ -27,14 +27,13 @@ from gymnasium import spaces
 
 from pr2_drake.env import reseed, restart
 from pr2_drake.episode import Episode
-from pr2_drake.learning.observe import Observer
+from pr2_drake.learning.observe import DEPTH_MAX, Observer
 from pr2_drake.learning.rewards import Reward
 from pr2_drake.ports import N_ARMS, N_LEGS, JointGroupCommand
 from pr2_drake.scenario import Scenario, ScenarioError
 
 RENDER_SIZE = (320, 240)  # [px] render() picture (width, height)
 SEED_RANGE = 2 ** 31  # reset() without a seed draws the episode seed from [0, this)
-DEPTH_MAX = 10.0  # [m] depth beyond the camera's range reads this in the observation
 
 
 class _LearningEnv(gym.Env):
@@ -193,10 +192,7 @@ class _LearningEnv(gym.Env):
         status = ep.status
         progress = (status.score / status.max_score if status.max_score else 0.0,
                     ep.time / ep.limit if math.isfinite(ep.limit) else 0.0)
-        obs = self._observer.observe(values, progress)
-        if "depth" in obs:
-            obs["depth"] = np.clip(obs["depth"], 0.0, DEPTH_MAX)
-        return obs
+        return self._observer.observe(values, progress)
 
     def _info(self, terms: dict[str, float]) -> dict[str, Any]:
         ep = self._episode

@@ -18,7 +18,8 @@ order, which is also gymnasium's ``FlattenObservation`` order):
 - ``progress`` (2): score / max score, and simulated time / the episode's limit;
 - ``target`` (3): R in the heading frame H [m] (where to go or reach);
 - with the camera (``camera=True``): ``rgb`` (h, w, 3) uint8 and ``depth`` (h, w, 1) float32
-  [m], the head camera's last frame downsized (not part of the flat form).
+  [m] (0 too near, :data:`DEPTH_MAX` beyond), the head camera's last frame downsized (not
+  part of the flat form).
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ import numpy as np
 from pr2_drake.ports import BODY_STATE_SIZE, JOINT_STATE_SIZE, P_WB, QUAT_WB, V_WB, W_WB
 
 REFERENCE_PRIORS = ("goal_center", "valve_center", "button_center", "coffee_table_center")
+DEPTH_MAX = 10.0  # [m] depth beyond this (or beyond the camera's range) reads this
 
 
 def reference_point(priors: dict[str, Any]) -> np.ndarray:
@@ -147,7 +149,8 @@ class Observer:
                          interpolation=cv2.INTER_AREA)
         depth = cv2.resize(np.asarray(frame.depth, dtype=np.float32).reshape(
             frame.depth.shape[0], frame.depth.shape[1]), (w, h), interpolation=cv2.INTER_NEAREST)
-        depth = np.nan_to_num(depth, nan=0.0, posinf=0.0, neginf=0.0)
+        depth = np.clip(np.nan_to_num(depth, nan=0.0, posinf=DEPTH_MAX, neginf=0.0), 0.0,
+                        DEPTH_MAX)
         return {"rgb": rgb.astype(np.uint8), "depth": depth[..., None].astype(np.float32)}
 
     def flatten(self, obs: dict[str, Any]) -> np.ndarray:
