@@ -48,7 +48,30 @@ def test_an_original_style_folder_runs_through_pr2_launch(tmp_path, task, second
     assert f"ended timeout at t = {seconds:.3f} s" in run.stdout
 
 
-def test_pr2_launch_reports_a_solver_error_and_refuses_bad_input(tmp_path):
+def test_a_folder_without_launcher_and_a_failing_solver_still_leave_a_report(tmp_path):
+    """Without task_launcher.py, pr2.launcher runs the solver; a solver that raises ends the
+    episode agent_error, named in the report, and pr2-launch exits with the launcher's status."""
+    solver = tmp_path / "solvers" / "task_3_solver"
+    solver.mkdir(parents=True)
+    (solver / "__init__.py").write_text("")
+    (solver / "task_solver.py").write_text(
+        "from pr2.solver import TaskSolverBase\n\n\n"
+        "class TaskSolver(TaskSolverBase):\n"
+        "    def next_action(self, obs):\n"
+        "        if obs['current_sim_step'] == 50:\n"
+        "            raise KeyError('mode')\n"
+        "        return {}\n")
+    report = tmp_path / "report.json"
+    run = subprocess.run([sys.executable, "-m", "pr2_drake.cli", "pr2-launch",
+                          str(tmp_path / "solvers"), "3", "--port", "0", "--report", str(report),
+                          "--seed", "5"], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert run.returncode == 1 and "KeyError: 'mode'" in run.stderr, run.stderr
+    r = json.loads(report.read_text())
+    assert (r["termination"], r["message"], r["seed"]) == ("agent_error", "KeyError: 'mode'", 5)
+    assert r["sim_time"] == 0.05 and "ended agent_error at t = 0.050 s" in run.stdout
+
+
+def test_pr2_launch_refuses_bad_input():
     missing = subprocess.run([sys.executable, "-m", "pr2_drake.cli", "pr2-launch", str(FOLDER),
                               "2"], capture_output=True, text=True, cwd=ROOT)
     assert missing.returncode == 2

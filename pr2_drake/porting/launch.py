@@ -33,6 +33,8 @@ SEED_ENV = "PR2_DRAKE_SEED"  # the episode seed, replacing the launcher's
 SECONDS_ENV = "PR2_DRAKE_SECONDS"  # the episode's time limit [s]
 AGENT_ENV = "PR2_DRAKE_AGENT"  # the solver's name in the report
 CONTROLLER_ENV = "PR2_DRAKE_CONTROLLER"  # host:port of the started controller server
+#: [s] a launcher interrupted by Ctrl-C has this long to write its report.
+INTERRUPT_GRACE = 10.0
 
 
 @dataclass
@@ -109,11 +111,28 @@ def launch(options: LaunchOptions) -> int:
             env[SEED_ENV] = str(options.seed)
         if options.seconds is not None:
             env[SECONDS_ENV] = repr(float(options.seconds))
-        rc = subprocess.call(command, cwd=folder.parent, env=env)
+        rc, interrupted = run_launcher(command, folder.parent, env)
     finally:
         server.terminate()
         server.wait(timeout=30)
-    return summarise(report, rc)
+    rc = summarise(report, rc)
+    if interrupted:
+        raise KeyboardInterrupt
+    return rc
+
+
+def run_launcher(command: list[str], cwd: Path, env: dict[str, str]) -> tuple[int, bool]:
+    """Run the launcher; (its exit status, whether Ctrl-C interrupted it). On Ctrl-C (which
+    reaches the launcher too) it is given :data:`INTERRUPT_GRACE` seconds to write its report."""
+    child = subprocess.Popen(command, cwd=cwd, env=env)
+    try:
+        return child.wait(), False
+    except KeyboardInterrupt:
+        try:
+            return child.wait(timeout=INTERRUPT_GRACE), True
+        except subprocess.TimeoutExpired:
+            child.kill()
+            return child.wait(), True
 
 
 def start_server(task: int, port: int) -> tuple[subprocess.Popen, str]:
