@@ -35,4 +35,4 @@ def test_wheel_runs_outside_the_checkout(tmp_path):
              "print(C.for_task(5).overrides)")
     out = subprocess.run([sys.executable, "-c", probe], cwd=tmp_path, env=env,
                          capture_output=True, text=True, check=True).stdout.split()
-    assert out[0].startswith(str(target)) and out[1].endswith("walking_stairs.yaml")
+    assert out[0].startswith(str(target)) and out[1] == "walking_stairs.yaml"

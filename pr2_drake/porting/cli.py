@@ -23,15 +23,15 @@ def add_controller_server_parser(sub) -> None:
                                   "jumps) for task 1..6; the flags below override it")
     p.add_argument("--port", type=int, default=8800, help="TCP port (0: a free one; default 8800)")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
-    p.add_argument("--walking", metavar="YAML", help="walking parameters "
-                                                     "(default controllers/walking.yaml)")
-    p.add_argument("--overrides", metavar="YAML", help="partial walking YAML on top, e.g. "
-                                                       "controllers/walking_rough.yaml")
+    p.add_argument("--walking", metavar="YAML", help="walking parameters (default: the "
+                                                     "built-in walking.yaml)")
+    p.add_argument("--overrides", metavar="YAML", help="partial walking YAML on top (e.g. the "
+                                                       "built-in walking_rough.yaml)")
     p.add_argument("--terrain", choices=("flat", "rough", "slope", "stairs"),
                    help="footholds: flat (default), rough (unknown stones, task 1), slope or "
                         "stairs (from --task's priors: 4, 5)")
-    p.add_argument("--jumping", metavar="YAML", help="jump parameters "
-                                                     "(default controllers/jumping.yaml)")
+    p.add_argument("--jumping", metavar="YAML", help="jump parameters (default: the built-in "
+                                                     "jumping.yaml)")
     p.add_argument("--jump-apex", type=float, help="CoM rise of a change_state 2 jump [m] "
                                                    "(default 0.18)")
     p.add_argument("--request-period", type=float,

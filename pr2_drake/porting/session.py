@@ -9,8 +9,8 @@ built-in whole-body controller (:class:`pr2_drake.controllers.jumping.JumpContro
 Time: a request's ``time`` field, when present, is the simulation time; otherwise the n-th
 valid request (from 0) of the session is at ``n * request_period`` (default 0.001 s, one
 physics step: the original's solvers call the server once per step). The control law runs
-every ``control_period`` of that time (4 ms, controllers/walking.yaml) and the torques are held
-in between. A time earlier than the last one restarts the controller (a new episode).
+every ``control_period`` of that time (4 ms, in walking.yaml) and the torques are held in
+between. A time earlier than the last one restarts the controller (a new episode).
 """
 
 from __future__ import annotations
@@ -37,7 +37,8 @@ class ControllerServerConfig:
 
     Attributes:
         task: the task id whose priors give the ``slope`` and ``stairs`` terrains (None: none).
-        walking: walking parameters (YAML; relative paths also in the data root).
+        walking: walking parameters (a YAML file; a bare name that is no file here is the
+            built-in file of that name, see :func:`param_file`).
         overrides: a partial walking YAML applied on top (e.g. walking_rough.yaml).
         terrain: footholds: "flat"; "rough" (unknown stones: the swing sole aims
             ``rough_drop`` below the stance sole and touches down on contact, as the task-1
@@ -50,11 +51,11 @@ class ControllerServerConfig:
     """
 
     task: int | None = None
-    walking: str = f"{PARAMS_DIR}/walking.yaml"
+    walking: str = "walking.yaml"
     overrides: str | None = None
     terrain: str = "flat"
     rough_drop: float = 0.025
-    jumping: str = f"{PARAMS_DIR}/jumping.yaml"
+    jumping: str = "jumping.yaml"
     jump_overrides: str | None = None
     jump_apex: float = 0.18
     request_period: float = 0.001
@@ -85,9 +86,15 @@ class ControllerServerConfig:
         if unknown:
             raise ValueError(f"{TASK_SERVERS.name}: task {i}: unknown key(s) {unknown}; "
                              f"expected {sorted(known)}")
-        files = {k: f"{PARAMS_DIR}/{v}" for k, v in entry.items()
-                 if k in ("walking", "overrides", "jumping", "jump_overrides")}
-        return replace(ControllerServerConfig(task=i), **{**entry, **files})
+        return replace(ControllerServerConfig(task=i), **entry)
+
+
+def param_file(name: str) -> str:
+    """A parameter file's path: ``name`` if it is a file or a path, else the built-in file of
+    that name (in :data:`PARAMS_DIR` of the data root)."""
+    if "/" in name or Path(name).is_file():
+        return name
+    return f"{PARAMS_DIR}/{name}"
 
 
 @lru_cache(maxsize=1)
@@ -122,17 +129,18 @@ def _load_params(config: ControllerServerConfig):
 
     stage = config.walking
     try:
-        params = WalkingParams.load(config.walking)
+        params = WalkingParams.load(param_file(config.walking))
         if config.overrides:
             stage = config.overrides
-            params = params.with_overrides(config.overrides)
+            params = params.with_overrides(param_file(config.overrides))
         stage = config.jumping
-        jump = JumpParams.load(config.jumping)
+        jump = JumpParams.load(param_file(config.jumping))
         if config.jump_overrides:
             stage = config.jump_overrides
-            jump = jump.with_overrides(config.jump_overrides)
-    except FileNotFoundError as e:
-        raise ValueError(str(e)) from None
+            jump = jump.with_overrides(param_file(config.jump_overrides))
+    except FileNotFoundError:
+        raise ValueError(f"{stage}: not found (neither as given nor as a built-in parameter "
+                         f"file)") from None
     except Exception as e:  # the YAML parser's and the schema's errors
         raise ValueError(f"{stage}: {' '.join(str(e).split())}") from None
     return params, jump
