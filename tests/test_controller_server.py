@@ -195,3 +195,18 @@ def test_a_sandboxed_solver_uses_the_in_process_client():
                                        agent=f"{agent}:InProcessWalker"),
                               limits=SandboxLimits(step_seconds=2.0, startup_seconds=60.0))
     assert r["termination"] == "timeout" and r["steps"] == 300, r
+
+
+@pytest.mark.parametrize("flags, named", [
+    (["--max-clients", "0"], "--max-clients"), (["--idle-timeout", "nan"], "--idle-timeout"),
+    (["--task", "7"], "unknown task 7"), (["--overrides", "no_such_file.yaml"], "no_such_file"),
+    (["--terrain", "stairs"], "terrain 'stairs'"), (["--overrides", "{bad}"], "bad.yaml: while"),
+    (["--jumping", "{bad}"], "bad.yaml: while")])
+def test_the_cli_refuses_bad_flags(tmp_path, flags, named):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("gait: [1, 2\n")  # malformed YAML
+    flags = [f.format(bad=bad) for f in flags]
+    run = subprocess.run([sys.executable, "-m", "pr2_drake.cli", "controller-server", "--port",
+                          "0", *flags], capture_output=True, text=True, cwd=ROOT, timeout=60)
+    assert run.returncode == 2 and run.stderr.startswith("pr2-drake: error:"), run.stderr
+    assert named in run.stderr and not run.stdout
