@@ -75,8 +75,9 @@ class Env:
 
         status = self._env.status
         if status.done:
-            return True, status.success, self._obs if self._obs is not None else \
-                self._env.observation()
+            if self._obs is None:
+                self._obs = self._env.observation()
+            return True, status.success, self._obs
         try:
             done, success, obs = self._env.step(action)
         except InvalidAction as e:
