@@ -11,8 +11,8 @@ the ``--set`` overrides.
     pr2-drake compete SUBMISSIONS_DIR --tasks all|1,3 --seeds A:B [--jobs J] --out DIR
                       [--backend local|ray] [--ray-address ADDR]
     pr2-drake leaderboard DIR
-    pr2-drake controller-server [--port 8800] [--host 127.0.0.1] [--overrides YAML]
-                                [--terrain flat|rough]
+    pr2-drake controller-server [--task N] [--port 8800] [...]   (pr2_drake.porting.cli)
+    pr2-drake pr2-launch FOLDER N [--report JSON] [--port P] [--seed S]
     pr2-drake bench {sim,camera,startup,walking,whole-body,perception,...} [...]
     pr2-drake tasks
 
@@ -292,27 +292,6 @@ def cmd_leaderboard(args) -> int:
     return 0
 
 
-def cmd_controller_server(args) -> int:
-    from pr2_drake.porting.controller_server import ControllerServer, ControllerServerConfig
-
-    config = ControllerServerConfig(terrain=args.terrain, request_period=args.request_period,
-                                    jump_apex=args.jump_apex)
-    if args.walking:
-        config.walking = args.walking
-    if args.overrides:
-        config.overrides = args.overrides
-    if args.jumping:
-        config.jumping = args.jumping
-    server = ControllerServer(args.host, args.port, config)
-    host, port = server.address
-    print(f"controller-server: listening on {host}:{port} (Ctrl-C stops)", flush=True)
-    try:
-        server.serve_forever()
-    finally:
-        server.close()
-    return 0
-
-
 def cmd_bench(args) -> int:
     from pr2_drake.benchmarks import run_benchmark
 
@@ -388,24 +367,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plots", action="store_true", help="tables only")
     p.set_defaults(func=cmd_leaderboard)
 
-    p = sub.add_parser("controller-server",
-                       help="the original PR2 walking controller's TCP protocol, answered by "
-                            "the built-in walking/jump controller")
-    p.add_argument("--port", type=int, default=8800, help="TCP port (0: a free one; default 8800)")
-    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
-    p.add_argument("--walking", metavar="YAML", help="walking parameters "
-                                                     "(default controllers/walking.yaml)")
-    p.add_argument("--overrides", metavar="YAML", help="partial walking YAML on top, e.g. "
-                                                       "controllers/walking_rough.yaml")
-    p.add_argument("--terrain", choices=("flat", "rough"), default="flat",
-                   help="footholds: flat, or rough (unknown stones, task 1)")
-    p.add_argument("--jumping", metavar="YAML", help="jump parameters "
-                                                     "(default controllers/jumping.yaml)")
-    p.add_argument("--jump-apex", type=float, default=0.18,
-                   help="CoM rise of a change_state 2 jump [m] (default 0.18)")
-    p.add_argument("--request-period", type=float, default=0.001,
-                   help="simulated seconds per request without a 'time' field (default 0.001)")
-    p.set_defaults(func=cmd_controller_server)
+    from pr2_drake.porting.cli import add_controller_server_parser, add_pr2_launch_parser
+
+    add_controller_server_parser(sub)
+    add_pr2_launch_parser(sub)
 
     from pr2_drake.benchmarks import BENCHMARKS
 
