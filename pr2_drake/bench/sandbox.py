@@ -36,7 +36,7 @@ def boundary_cpu_us(task: int, repeats: int = 2000) -> dict[str, float]:
 
     from pr2_drake.agents.standing import StandingAgent
     from pr2_drake.compete.child import _binary, jsonable
-    from pr2_drake.compete.sandbox import decode_reply
+    from pr2_drake.compete.channel import decode_reply
     from pr2_drake.env import Env
     from pr2_drake.observation import observation_from_ports
 
