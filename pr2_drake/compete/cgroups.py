@@ -5,8 +5,9 @@ cgroup v2 (``memory.max``, ``memory.swap.max``, ``pids.max``, ``cgroup.kill``) w
 harness's own group delegates the controllers; else cgroup v1 (``memory.limit_in_bytes``,
 ``memory.memsw.limit_in_bytes``, ``pids.max``) under the harness's own group in each
 hierarchy. A group goes under the harness's own, so the limits the machine puts on the harness
-still hold. Where no writable group exists, :class:`AgentCgroup` holds nothing and the sandbox
-falls back to ``RLIMIT_AS`` (memory) and ``RLIMIT_NPROC`` (processes).
+still hold. Where no writable group exists (or ``PR2_DRAKE_NO_CGROUPS=1``, for the tests),
+:class:`AgentCgroup` holds nothing and the sandbox falls back to ``RLIMIT_AS`` (memory) and
+``RLIMIT_NPROC`` (processes).
 """
 
 from __future__ import annotations
@@ -59,9 +60,16 @@ def _own_groups() -> dict[str, Path]:
     return found
 
 
+NO_CGROUPS_ENV = "PR2_DRAKE_NO_CGROUPS"  # "1": behave as if no group were writable (tests)
+
+
+def _usable_groups() -> dict[str, Path]:
+    return {} if os.environ.get(NO_CGROUPS_ENV) == "1" else _own_groups()
+
+
 def available() -> tuple[str, ...]:
     """The controllers the harness can limit an agent with here ("memory", "pids")."""
-    return tuple(sorted(_own_groups()))
+    return tuple(sorted(_usable_groups()))
 
 
 class AgentCgroup:
@@ -75,7 +83,7 @@ class AgentCgroup:
     def __init__(self, memory_bytes: int, processes: int):
         self.groups: dict[str, Path] = {}
         name = f"pr2_agent_{os.getpid()}_{next(_COUNTER)}"
-        for controller, parent in _own_groups().items():
+        for controller, parent in _usable_groups().items():
             group = parent / name
             try:
                 group.mkdir(exist_ok=True)

@@ -128,4 +128,5 @@ def check_isolate_flags(args) -> None:
     if args.trust_submissions:
         given.append("--trust-submissions")
     if given:
-        raise ValueError(f"{', '.join(given)} need --isolate (they limit the sandboxed agent)")
+        raise ValueError(f"{', '.join(given)}: only with --isolate (limits of the sandboxed "
+                         f"agent)")

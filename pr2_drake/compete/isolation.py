@@ -101,8 +101,9 @@ def mount_plan(submission: Path | None, hide: tuple[Path, ...], tmp_bytes: int) 
                     made.add(parent)
                     plan.append(["dir", "", str(parent), 0o755, 0])
             plan.append(["ro-bind", str(path), str(path), 0, 0])
-    for h in hide:
-        if h.is_dir() and not any(_within(n, h) for n in needed):
+    for h in hide:  # (what lies under a fresh folder is gone already)
+        if h.is_dir() and not any(_within(n, h) for n in needed) and \
+                not any(_within(h, Path(f)) for f in fresh):
             plan.append(["tmpfs", "", str(h), 0o000, 4096])
     plan.append(["dir", "", INSIDE, 0o755, 0])
     if submission is not None:
@@ -160,11 +161,17 @@ def command(kind: str, program: list[str], *, plan: list[list], root: Path, uid:
 
 
 # -- what works here -----------------------------------------------------------------------------
-@lru_cache(maxsize=None)
 def works(kind: str) -> bool:
     """Whether ``kind`` ("bwrap", "unshare") starts a sandbox here (checked once per process:
     a program run in it as the agent would be)."""
-    if kind == "bwrap" and (os.environ.get(NO_BWRAP_ENV) == "1" or not shutil.which("bwrap")):
+    if kind == "bwrap" and os.environ.get(NO_BWRAP_ENV) == "1":
+        return False
+    return _works(kind)
+
+
+@lru_cache(maxsize=None)
+def _works(kind: str) -> bool:
+    if kind == "bwrap" and not shutil.which("bwrap"):
         return False
     if kind == "unshare" and not shutil.which("unshare"):
         return False

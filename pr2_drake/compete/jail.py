@@ -38,6 +38,7 @@ PR_SET_PDEATHSIG, PR_CAPBSET_DROP, PR_SET_SECUREBITS = 1, 24, 28
 PR_SET_NO_NEW_PRIVS, PR_SET_SECCOMP, SECCOMP_MODE_FILTER = 38, 22, 2
 SECBITS_LOCKED_NOROOT = 0x3 | 0xC  # SECBIT_NOROOT(+_LOCKED), SECBIT_NO_SETUID_FIXUP(+_LOCKED)
 DEVICES = ("null", "zero", "full", "random", "urandom", "tty")
+JAIL_FAILED = 125  # exit status when the sandbox could not be set up (the reason on stderr)
 
 _libc = ctypes.CDLL(None, use_errno=True)
 
@@ -275,7 +276,7 @@ def init(config: dict, argv: list[str]) -> int:
             become_agent(config, argv)
         except BaseException as e:  # noqa: BLE001 (report any failure, never run the agent)
             os.write(2, f"sandbox: {type(e).__name__}: {e}\n".encode())
-        os._exit(125)
+        os._exit(JAIL_FAILED)
     while True:
         pid, status = os.waitpid(-1, 0)
         if pid == agent:
@@ -291,7 +292,7 @@ def main(args: list[str]) -> int:
         become_agent(config, argv)
     except BaseException as e:  # noqa: BLE001
         os.write(2, f"sandbox: {type(e).__name__}: {e}\n".encode())
-    return 125
+    return JAIL_FAILED
 
 
 if __name__ == "__main__":

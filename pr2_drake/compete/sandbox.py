@@ -28,6 +28,7 @@ from typing import Any
 
 from pr2_drake.compete import isolation
 from pr2_drake.compete.cgroups import AgentCgroup
+from pr2_drake.compete.jail import JAIL_FAILED
 from pr2_drake.compete.channel import (
     MAX_REPLY_BYTES,
     Budget,
@@ -43,6 +44,7 @@ from pr2_drake.compete.submission import check_submission
 from pr2_drake.framing import LENGTH, frame
 
 LOG_BYTES = 4000  # the end of the agent's output kept for its report [bytes]
+AS_HEADROOM = 4 << 30  # address space beyond twice the memory limit, with a memory group [B]
 _SANDBOXES = "pr2_drake_sandboxes"  # parent of every agent's scratch folder (hidden in each)
 _LIBC = ctypes.CDLL(None)  # loaded here: nothing is imported between fork and exec
 PR_SET_PDEATHSIG = 1
@@ -134,8 +136,10 @@ class AgentProcess:
         lim = self.limits
         out = {"RLIMIT_CPU": int(lim.cpu_seconds), "RLIMIT_CORE": 0,
                "RLIMIT_FSIZE": lim.memory_bytes}
-        if not self.cgroup.limits_memory:
-            out["RLIMIT_AS"] = lim.memory_bytes
+        # The address space: the limit itself without a memory group; with one (which
+        # counts what is used), a guard that refuses absurd reservations at once.
+        out["RLIMIT_AS"] = lim.memory_bytes if not self.cgroup.limits_memory else \
+            2 * lim.memory_bytes + AS_HEADROOM
         if not self.cgroup.limits_processes:
             own = 0 if os.getuid() == 0 else _count_own_processes()
             out["RLIMIT_NPROC"] = int(lim.processes) + own
@@ -151,7 +155,9 @@ class AgentProcess:
                 resource.setrlimit(getattr(resource, name), (value, value))
 
     def close(self) -> None:
-        """Kill the sandbox (SIGKILL: an agent ignoring SIGTERM goes too) and clean up."""
+        """Kill the sandbox (SIGKILL: an agent ignoring SIGTERM goes too; its PID 1 takes
+        every process in the namespace with it), wait until they are gone, clean up."""
+        namespace = self._namespace()
         self._terminate()
         if self.proc is not None:
             try:
@@ -160,6 +166,8 @@ class AgentProcess:
                 pass
         if self.cgroup is not None:
             self.cgroup.kill()
+        if namespace:
+            _wait_until_empty(namespace)
         for name in ("_w", "_r", "_cam_fd"):
             if getattr(self, name) >= 0:
                 os.close(getattr(self, name))
@@ -173,6 +181,13 @@ class AgentProcess:
         if self.scratch is not None:
             shutil.rmtree(self.scratch, ignore_errors=True)
             self.scratch = None
+
+    def _namespace(self) -> str:
+        """The sandbox's PID namespace ("" unisolated, or when it is gone already)."""
+        if not self.isolated or self.proc is None:
+            return ""
+        pid = _sandbox_pid(self.proc.pid, 1)
+        return _read_link(f"/proc/{pid}/ns/pid") if pid is not None else ""
 
     def log_tail(self, n: int = LOG_BYTES) -> str:
         """The end of the agent's stdout and stderr."""
@@ -261,6 +276,9 @@ class AgentProcess:
             return AgentFault("agent_memory", f"the agent exceeded its memory limit of "
                                               f"{self.limits.memory_mb} MiB (killed)")
         log = self.log_tail()
+        if code == JAIL_FAILED and "sandbox: " in log:
+            line = log[log.rindex("sandbox: "):].splitlines()[0]
+            return AgentFault("agent_error", f"the sandbox could not start: {line[:300]}")
         signum = -code if code is not None and code < 0 else (
             code - 128 if code is not None and self.isolated and 128 < code < 160 else None)
         if signum == signal.SIGXCPU or "SIGXCPU" in log:
@@ -319,6 +337,30 @@ def _sandbox_pid(root: int, inner: int) -> int | None:
         for t in tasks:
             stack += [int(c) for c in _read_text(f"/proc/{pid}/task/{t}/children").split()]
     return None
+
+
+def _wait_until_empty(namespace: str, timeout: float = 5.0) -> None:
+    """Wait until no process is left running in the PID namespace ``namespace`` (killed when
+    its PID 1 died, they may take a moment to go; a zombie holds nothing)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if not any(_read_link(f"/proc/{p}/ns/pid") == namespace and _state(p) != "Z"
+                   for p in os.listdir("/proc") if p.isdigit()):
+            return
+        time.sleep(0.02)
+
+
+def _state(pid: str) -> str:
+    """A process's state letter (R, S, Z...), "" when it is gone."""
+    stat = _read_text(f"/proc/{pid}/stat")
+    return stat.rpartition(")")[2].split()[0] if ")" in stat else ""
+
+
+def _read_link(path: str) -> str:
+    try:
+        return os.readlink(path)
+    except OSError:
+        return ""
 
 
 def _read_text(path: str) -> str:

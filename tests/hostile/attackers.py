@@ -157,6 +157,20 @@ class DaemonSurvivor(_Attacker):
             libc._exit(0)
 
 
+class ForkBombViaCtypes(_Attacker):
+    """Forks through libc (no audit event) as often as it can; every child sleeps."""
+
+    def attack(self, obs):
+        for _ in range(5000):
+            pid = libc.fork()
+            if pid == 0:
+                libc.prctl(15, SURVIVOR, 0, 0, 0)  # PR_SET_NAME
+                time.sleep(600)
+                libc._exit(0)
+            if pid < 0:
+                break
+
+
 class KillsTheHarness(_Attacker):
     """Walks up its parents (the harness among them, without a PID namespace), seizes each
     with ptrace and SIGKILLs it through a pidfd (no audit event) and through libc."""
@@ -315,5 +329,6 @@ class Slow(StandingAgent):
     """Honest but slow: 0.2 s of wall clock a step (for a user's Ctrl-C to land in)."""
 
     def next_action(self, obs):
+        print("stepping", flush=True)
         time.sleep(0.2)
         return super().next_action(obs)
