@@ -143,9 +143,10 @@ def command(kind: str, program: list[str], *, plan: list[list], root: Path, uid:
         rlimits: resource limits of the agent's process ({"RLIMIT_...": value}).
         cwd: the agent's working folder, as it sees it.
     """
-    config = {"uid": uid, "gid": uid, "rlimits": rlimits, "seccomp": True, "cwd": cwd}
-    python = [sys.executable, "-I", "-S", str(JAIL)]
     as_root = os.getuid() == 0
+    config = {"uid": uid if as_root else os.getuid(), "gid": uid if as_root else os.getgid(),
+              "rlimits": rlimits, "seccomp": True, "cwd": cwd}
+    python = [sys.executable, "-I", "-S", str(JAIL)]
     if kind == "bwrap":
         users = [] if as_root else ["--unshare-user", "--disable-userns"]
         return ["bwrap", *bwrap_args(plan), "--unshare-pid", "--unshare-net", "--unshare-ipc",

@@ -34,6 +34,7 @@ import sys
 MS_RDONLY, MS_NOSUID, MS_NODEV, MS_NOEXEC = 1, 2, 4, 8
 MS_REMOUNT, MS_BIND, MS_REC, MS_PRIVATE = 32, 4096, 16384, 1 << 18
 MNT_DETACH = 2
+CLONE_NEWUSER = 0x10000000
 PR_SET_PDEATHSIG, PR_CAPBSET_DROP, PR_SET_SECUREBITS = 1, 24, 28
 PR_SET_NO_NEW_PRIVS, PR_SET_SECCOMP, SECCOMP_MODE_FILTER = 38, 22, 2
 SECBITS_LOCKED_NOROOT = 0x3 | 0xC  # SECBIT_NOROOT(+_LOCKED), SECBIT_NO_SETUID_FIXUP(+_LOCKED)
@@ -128,8 +129,16 @@ def build_root(root: str, mounts: list) -> None:
 
 # -- privileges and limits -------------------------------------------------------------------------
 def drop_privileges(uid: int, gid: int) -> None:
-    """Never root: as root, switch to ``uid``/``gid`` with no capability left; in a user
-    namespace that maps only this uid, drop the capabilities and lock root's special cases."""
+    """Never root: as root, switch to ``uid``/``gid`` with no capability left. As root of a
+    user namespace that maps only the harness's (unprivileged) uid, first enter a user
+    namespace of its own where that uid is ``uid`` (not 0); then drop the capabilities and
+    lock root's special cases."""
+    if os.getuid() == 0 and not _maps_other_uids():
+        _check(_libc.unshare(CLONE_NEWUSER), "unshare(CLONE_NEWUSER)")
+        for name, text in (("setgroups", "deny"), ("uid_map", f"{uid} 0 1"),
+                           ("gid_map", f"{gid} 0 1")):
+            with open(f"/proc/self/{name}", "w") as f:
+                f.write(text)
     for cap in range(64):
         if _libc.prctl(PR_CAPBSET_DROP, cap, 0, 0, 0) != 0 and ctypes.get_errno() != 22:
             break  # EINVAL: past the last capability
@@ -140,7 +149,7 @@ def drop_privileges(uid: int, gid: int) -> None:
     else:
         _libc.prctl(PR_SET_SECUREBITS, SECBITS_LOCKED_NOROOT, 0, 0, 0)
         _clear_capabilities()
-    if os.getuid() == 0 and _maps_other_uids():
+    if os.getuid() == 0:
         raise OSError("the agent would run as root")
     _check(_libc.prctl(PR_SET_NO_NEW_PRIVS, 1, 0, 0, 0), "no_new_privs")
 

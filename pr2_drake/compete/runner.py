@@ -28,7 +28,7 @@ import json
 import os
 import sys
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, TextIO
 
@@ -317,8 +317,3 @@ def write_results(rows: list[dict[str, Any]], out: Path, meta: dict[str, Any]) -
         w.writeheader()
         for r in rows:
             w.writerow(csv_row(r))
-
-
-def with_limits(limits: SandboxLimits, **changes) -> SandboxLimits:
-    """``limits`` with the given fields changed (None: unchanged)."""
-    return replace(limits, **{k: v for k, v in changes.items() if v is not None})
