@@ -83,7 +83,8 @@ def mount_plan(submission: Path | None, hide: tuple[Path, ...], tmp_bytes: int) 
     plan: list[list] = [["dev", "", "/dev", 0, 0], ["proc", "", "/proc", 0, 0]]
     fresh = ("/tmp", "/var/tmp", "/run", "/dev/shm")
     for dest in fresh:
-        plan.append(["tmpfs", "", dest, 0o1777 if dest != "/run" else 0o755, tmp_bytes])
+        run = dest == "/run"
+        plan.append(["tmpfs", "", dest, 0o755 if run else 0o1777, 1 << 20 if run else tmp_bytes])
     needed = _needed_paths()
     covered: set[Path] = set()
     made: set[Path] = set()

@@ -44,6 +44,10 @@ from pr2_drake.compete.submission import check_submission
 from pr2_drake.framing import LENGTH, frame
 
 LOG_BYTES = 4000  # the end of the agent's output kept for its report [bytes]
+# Settings of the linear-algebra libraries the agent's process keeps from the harness's
+# environment (OPENBLAS_CORETYPE picks OpenBLAS's kernels, whose roundings differ): the agent
+# computes as it would in process.
+NUMERIC_ENV = ("OPENBLAS_", "MKL_", "NPY_", "BLIS_", "GOTO_", "NVPL_")
 AS_HEADROOM = 4 << 30  # address space beyond twice the memory limit, with a memory group [B]
 _SANDBOXES = "pr2_drake_sandboxes"  # parent of every agent's scratch folder (hidden in each)
 _LIBC = ctypes.CDLL(None)  # loaded here: nothing is imported between fork and exec
@@ -120,6 +124,8 @@ class AgentProcess:
                "PYTHONPATH": os.pathsep.join(p for p in (sub, str(isolation.PROJECT_ROOT)) if p),
                "PYTHONUNBUFFERED": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
                "MKL_NUM_THREADS": "1", "PR2_DRAKE_SANDBOX": "1"}
+        env.update({k: v for k, v in os.environ.items()  # the same linear-algebra kernels
+                    if k.startswith(NUMERIC_ENV) and not k.endswith("_NUM_THREADS")})
         cwd = sub or work
         if not self.isolated:
             return child, env, cwd
@@ -259,11 +265,22 @@ class AgentProcess:
         return bytes(out)
 
     def _terminate(self) -> None:
-        if self.proc is not None and self.proc.poll() is None:
+        """SIGKILL the sandbox: its PID 1 first (the kernel then kills the whole namespace,
+        and bubblewrap or unshare, seeing it end, exits and reaps it: no orphan left),
+        then the process group of what the harness started."""
+        if self.proc is None or self.proc.poll() is not None:
+            return
+        init = _sandbox_pid(self.proc.pid, 1) if self.isolated else None
+        if init is not None:
             try:
-                os.killpg(self.proc.pid, signal.SIGKILL)
-            except ProcessLookupError:
+                os.kill(init, signal.SIGKILL)
+                self.proc.wait(timeout=2)
+            except (ProcessLookupError, subprocess.TimeoutExpired):
                 pass
+        try:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
 
     def _death(self) -> AgentFault:
         """Name how the agent's process ended (it closed the channel)."""
