@@ -137,6 +137,18 @@ class AgentCgroup:
         failcnt = _read(group / "memory.failcnt").strip()  # an old v1 kernel: the limit hit
         return failcnt.isdigit() and int(failcnt) > 0
 
+    def stuck_at_limit(self) -> bool:
+        """Whether the agent's processes wait in the kernel for memory beyond the limit (a
+        cgroup v1 group "under_oom" whose killer has not acted, or one already killed)."""
+        group = self.groups.get("memory")
+        if group is None:
+            return False
+        for line in _read(group / "memory.oom_control").splitlines():
+            key, _, value = line.partition(" ")
+            if key == "under_oom" and value.strip() == "1":
+                return True
+        return self.oom_killed()
+
     def kill(self) -> None:
         """SIGKILL every process in the groups (a fork bomb included), then remove them."""
         for group in dict.fromkeys(self.groups.values()):

@@ -48,7 +48,9 @@ LOG_BYTES = 4000  # the end of the agent's output kept for its report [bytes]
 # environment (OPENBLAS_CORETYPE picks OpenBLAS's kernels, whose roundings differ): the agent
 # computes as it would in process.
 NUMERIC_ENV = ("OPENBLAS_", "MKL_", "NPY_", "BLIS_", "GOTO_", "NVPL_")
-AS_HEADROOM = 4 << 30  # address space beyond twice the memory limit, with a memory group [B]
+AS_HEADROOM = 4 << 30
+MEMORY_CHECK = 0.5  # while waiting for an answer, look this often whether the agent is stuck
+# at its memory limit [s]  # address space beyond twice the memory limit, with a memory group [B]
 _SANDBOXES = "pr2_drake_sandboxes"  # parent of every agent's scratch folder (hidden in each)
 _LIBC = ctypes.CDLL(None)  # loaded here: nothing is imported between fork and exec
 PR_SET_PDEATHSIG = 1
@@ -252,8 +254,11 @@ class AgentProcess:
     def _read_exact(self, n: int, budget: Budget) -> bytes:
         out = bytearray()
         while len(out) < n:
-            ready, _, _ = select.select([self._r], [], [], budget.wait())
+            ready, _, _ = select.select([self._r], [], [], min(budget.wait(), MEMORY_CHECK))
             if not ready:
+                if self.cgroup is not None and self.cgroup.stuck_at_limit():
+                    self._terminate()  # waiting in the kernel for memory it cannot have
+                    raise AgentFault("agent_memory", self._over_memory())
                 if budget.left() > 0.0:
                     continue  # starved by a busy machine, not out of budget
                 self._terminate()
@@ -263,6 +268,9 @@ class AgentProcess:
                 raise self._death()
             out += chunk
         return bytes(out)
+
+    def _over_memory(self) -> str:
+        return f"the agent exceeded its memory limit of {self.limits.memory_mb} MiB (killed)"
 
     def _terminate(self) -> None:
         """SIGKILL the sandbox: its PID 1 first (the kernel then kills the whole namespace,
@@ -290,8 +298,7 @@ class AgentProcess:
             self._terminate()
             code = None
         if self.cgroup is not None and self.cgroup.oom_killed():
-            return AgentFault("agent_memory", f"the agent exceeded its memory limit of "
-                                              f"{self.limits.memory_mb} MiB (killed)")
+            return AgentFault("agent_memory", self._over_memory())
         log = self.log_tail()
         if code == JAIL_FAILED and "sandbox: " in log:
             line = log[log.rindex("sandbox: "):].splitlines()[0]
