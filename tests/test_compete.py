@@ -181,3 +181,11 @@ def test_a_system_agent_gets_only_the_offered_ports():
     r = _sandboxed("PeeksAtPlantState")
     assert r["termination"] == "agent_error" and "ports that are not offered" in r["message"], r
     assert r["steps"] == 0
+
+
+def test_an_agent_asking_for_a_control_period_below_one_physics_step_is_refused():
+    attackers = HOSTILE.with_name("attackers.py")
+    r = run_sandboxed_episode(Scenario(task=1, seed=0, agent=f"{attackers}:TinyControlDt",
+                                       start=ON_THE_ROAD, seconds=0.2), limits=LIMITS)
+    assert r["termination"] == "agent_error" and "control_dt" in r["message"], r
+    assert r["steps"] == 0

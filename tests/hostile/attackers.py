@@ -332,3 +332,9 @@ class Slow(StandingAgent):
         print("stepping", flush=True)
         time.sleep(0.2)
         return super().next_action(obs)
+
+
+class TinyControlDt(StandingAgent):
+    """Asks for an action every nanosecond (9 us of simulated time in 20 s of wall clock)."""
+
+    control_dt = 1e-9
