@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import argparse
 
+from pr2_drake.flags import positive_float, positive_int
+
 
 def add_controller_server_parser(sub) -> None:
     """``pr2-drake controller-server``."""
@@ -32,13 +34,13 @@ def add_controller_server_parser(sub) -> None:
                         "stairs (from --task's priors: 4, 5)")
     p.add_argument("--jumping", metavar="YAML", help="jump parameters (default: the built-in "
                                                      "jumping.yaml)")
-    p.add_argument("--jump-apex", type=float, help="CoM rise of a change_state 2 jump [m] "
+    p.add_argument("--jump-apex", type=positive_float, help="CoM rise of a change_state 2 jump [m] "
                                                    "(default 0.18)")
-    p.add_argument("--request-period", type=float,
+    p.add_argument("--request-period", type=positive_float,
                    help="simulated seconds per request without a 'time' field (default 0.001)")
-    p.add_argument("--max-clients", type=int, help="connections served at once; one more gets "
+    p.add_argument("--max-clients", type=positive_int, help="connections served at once; one more gets "
                                                    "an error reply (default 16)")
-    p.add_argument("--idle-timeout", type=float, help="close a connection silent this many "
+    p.add_argument("--idle-timeout", type=positive_float, help="close a connection silent this many "
                                                       "seconds (default 60)")
     p.set_defaults(func=run_controller_server)
 
