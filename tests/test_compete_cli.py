@@ -120,14 +120,6 @@ def test_a_control_period_below_one_physics_step_is_refused():
     assert r.returncode == 2 and "control_dt must be at least one physics step" in r.stderr
 
 
-def test_malformed_controller_yaml_is_a_clean_error(tmp_path):
-    bad = tmp_path / "bad.yaml"
-    bad.write_text("gait: [1, 2\n")
-    r = _cli("controller-server", "--port", "0", "--overrides", str(bad))
-    assert r.returncode == 2 and r.stderr.startswith("pr2-drake: error: argument --overrides")
-    assert "not valid YAML" in r.stderr and "Traceback" not in r.stderr
-
-
 def test_compete_out_on_a_file_is_a_clean_error(tmp_path):
     out = tmp_path / "results"
     out.write_text("not a folder")
