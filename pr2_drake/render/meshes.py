@@ -11,6 +11,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import tempfile
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -170,7 +171,9 @@ def _load_parts(path: str, _mtime: int) -> tuple[MeshPart, ...]:
         resolver = trimesh.resolvers.FilePathResolver(path, allow_anywhere=True)
     except TypeError:  # an older trimesh resolves any relative path
         resolver = trimesh.resolvers.FilePathResolver(path)
-    loaded = trimesh.load(path, process=False, maintain_order=True, resolver=resolver)
+    with warnings.catch_warnings():  # trimesh's texture merge warns on untextured OBJ parts
+        warnings.simplefilter("ignore", RuntimeWarning)
+        loaded = trimesh.load(path, process=False, maintain_order=True, resolver=resolver)
     meshes = loaded.dump() if isinstance(loaded, trimesh.Scene) else [loaded]
     gltf = path.lower().endswith((".gltf", ".glb"))
     parts = []
@@ -182,7 +185,10 @@ def _load_parts(path: str, _mtime: int) -> tuple[MeshPart, ...]:
             v, n = v @ GLTF_TO_DRAKE.T, n @ GLTF_TO_DRAKE.T
         uv = getattr(m.visual, "uv", None)
         uv = None if uv is None or len(uv) != len(v) else np.asarray(uv, float)
-        parts.append(MeshPart(v, n, uv, np.asarray(m.faces, np.int64),
+        # A part of a multi-material file lists every vertex of the file: keep its own.
+        used, faces = np.unique(np.asarray(m.faces, np.int64), return_inverse=True)
+        parts.append(MeshPart(v[used], n[used], None if uv is None else uv[used],
+                              faces.reshape(-1, 3),
                               _file_material(m.visual, "gltf" if gltf else "mtl")))
     if not parts:
         raise ValueError(f"mesh file has no triangles: {path}")
