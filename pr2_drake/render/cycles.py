@@ -11,8 +11,10 @@ scene per process: one renderer at a time.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
+import sys
 import tempfile
 from pathlib import Path
 
@@ -51,7 +53,8 @@ class CyclesRenderer:
         bpy = import_bpy()
         self.bpy = bpy
         self.settings = settings
-        bpy.ops.wm.read_factory_settings(use_empty=True)
+        with _quiet():
+            bpy.ops.wm.read_factory_settings(use_empty=True)
         self.scene = bpy.context.scene
         self._materials: dict[SurfaceMaterial, object] = {}
         self._objects: dict[int, list] = {}
@@ -69,7 +72,7 @@ class CyclesRenderer:
         self.scene.collection.objects.link(self.camera)
         self.scene.camera = self.camera
         self._setup_film()
-        self._out = Path(tempfile.mkdtemp(prefix="pr2_drake_cycles_"))
+        self._out = tempfile.TemporaryDirectory(prefix="pr2_drake_cycles_")  # removed with self
 
     # -- scene ----------------------------------------------------------------------------------
     def _add_part(self, name: str, part, matrix=None):
@@ -217,15 +220,35 @@ class CyclesRenderer:
             cam.dof.focus_distance = float(view.focus_distance)
             cam.dof.aperture_fstop = float(view.f_stop)
         self.camera.matrix_world = _matrix(np.asarray(view.X_WC) @ DRAKE_TO_BLENDER_CAMERA)
-        path = self._out / f"frame_{os.getpid()}.png"
+        path = Path(self._out.name) / "frame.png"
         scene.render.filepath = str(path)
-        self.bpy.ops.render.render(write_still=True)
+        with _quiet():
+            self.bpy.ops.render.render(write_still=True)
         import cv2
 
         image = cv2.imread(str(path), cv2.IMREAD_COLOR)
         if image is None:
             raise RuntimeError(f"Cycles wrote no image to {path}")
         return np.ascontiguousarray(image[..., ::-1])
+
+
+@contextlib.contextmanager
+def _quiet():
+    """Silence what Blender prints itself (a line per frame and per file written, device
+    probes) on the process's stdout and stderr; Python exceptions still carry its errors."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = [os.dup(1), os.dup(2)]
+    null = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, 1)
+        os.dup2(null, 2)
+        yield
+    finally:
+        os.dup2(saved[0], 1)
+        os.dup2(saved[1], 2)
+        for fd in (*saved, null):
+            os.close(fd)
 
 
 def _cull_back_faces(nodes, links, bsdf) -> None:

@@ -2,8 +2,8 @@
 path tracer and by Drake's VTK raster from the same camera.
 
 The rig's testbed is built from the episode's own :class:`TestbedConfig` (same task, seed and
-start, so the same geometry), with the textured (PBR) visuals whatever the episode's camera
-preset, and without its head camera. Colour, depth and label images of the raster come from
+start, so the same geometry), with the visuals of the raster preset asked for (the textured
+PBR visuals, or ``low``'s flat ones) whatever the episode's camera preset. Colour, depth and label images of the raster come from
 an extra VTK renderer in its SceneGraph (:meth:`RenderRig.raster`); depth and labels are the
 simulator's own, exact.
 """
@@ -49,7 +49,10 @@ class RenderRig:
     """
 
     def __init__(self, config: TestbedConfig, quality: str = "high"):
-        camera = replace(config.camera or CameraSettings(), enabled=False, quality=quality)
+        # The testbed draws the fast preset's flat visuals only with its camera on (it is
+        # never rendered here: nothing evaluates its port).
+        camera = replace(config.camera or CameraSettings(), enabled=quality == "low",
+                         quality=quality)
         self.testbed = Testbed(replace(config, camera=camera))
         self.head_settings = _head_settings(config)
         self.scene_graph = self.testbed.scene_graph
