@@ -50,14 +50,18 @@ class CyclesRenderer:
     """
 
     def __init__(self, scene: SceneExport, settings: PathTracingSettings, lighting: Lighting):
-        bpy = import_bpy()
-        self.bpy = bpy
+        self.bpy = import_bpy()
         self.settings = settings
-        with _quiet():
-            bpy.ops.wm.read_factory_settings(use_empty=True)
-        self.scene = bpy.context.scene
         self._materials: dict[SurfaceMaterial, object] = {}
         self._objects: dict[int, list] = {}
+        with _quiet():  # (Cycles probes GPU libraries as it starts and says so)
+            self._build(scene, lighting)
+        self._out = tempfile.TemporaryDirectory(prefix="pr2_drake_cycles_")  # removed with self
+
+    def _build(self, scene: SceneExport, lighting: Lighting) -> None:
+        bpy = self.bpy
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        self.scene = bpy.context.scene
         for obj in scene.objects:
             self._objects[obj.geometry] = [
                 self._add_part(f"{obj.name}.{k}", part) for k, part in enumerate(obj.parts)]
@@ -67,12 +71,11 @@ class CyclesRenderer:
         self._add_sun(lighting)
         cam = bpy.data.cameras.new("camera")
         cam.sensor_fit = "VERTICAL"
-        cam.clip_start, cam.clip_end = 0.01, 2.5 * settings.ground_radius
+        cam.clip_start, cam.clip_end = 0.01, 2.5 * self.settings.ground_radius
         self.camera = bpy.data.objects.new("camera", cam)
         self.scene.collection.objects.link(self.camera)
         self.scene.camera = self.camera
         self._setup_film()
-        self._out = tempfile.TemporaryDirectory(prefix="pr2_drake_cycles_")  # removed with self
 
     # -- scene ----------------------------------------------------------------------------------
     def _add_part(self, name: str, part, matrix=None):
