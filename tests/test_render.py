@@ -140,6 +140,22 @@ def test_head_dataset_has_exact_depth_and_object_masks(tmp_path):
     assert seen and seen <= set(range(1, 10))
 
 
+def test_video_has_a_frame_per_step_of_the_episode(tmp_path):
+    video = tmp_path / "walk.mp4"
+    code = main(["render", "--task", "2", "--seconds", "1", "--video", str(video), "--fps", "4",
+                 "--engine", "vtk", "--quality", "low", "--size", "64x48", "--quiet"])
+    assert code == 0
+    capture = cv2.VideoCapture(str(video))
+    frames = []
+    while True:
+        ok, frame = capture.read()
+        if not ok:
+            break
+        frames.append(frame)
+    assert len(frames) == 5 and frames[0].shape == (48, 64, 3)  # t = 0, 0.25, ..., 1 s
+    assert np.abs(frames[-1].astype(float) - frames[0]).mean() > 0.5  # the robot moved
+
+
 def test_path_traced_still_of_task_2(tmp_path):
     pytest.importorskip("bpy", reason="the [photoreal] extra (bpy, Python 3.11) is not "
                                       "installed: pip install 'pr2-drake[photoreal]'")

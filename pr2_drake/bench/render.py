@@ -2,7 +2,7 @@
 
     pr2-drake bench render [--task 2] [--view follow] [--sizes 320x240,640x480,1280x720]
                            [--samples 1,4,16,64] [--noise-size 320x240] [--reference 1024]
-                           [--quick]
+                           [--speed-only] [--quick]
 
 The scene: the task's testbed (seed 0) at its start state, seen by ``pr2-drake render``'s
 camera (no simulation). For each size and samples per pixel: the wall time of one Cycles frame
@@ -59,6 +59,7 @@ def main(argv: list[str]) -> int:
     p.add_argument("--noise-size", default="320x240")
     p.add_argument("--reference", type=int, default=1024,
                    help="samples of the noise reference frame (default 1024)")
+    p.add_argument("--speed-only", action="store_true", help="no noise table")
     p.add_argument("--quick", action="store_true",
                    help="160x120 only, 1 and 4 samples, a 64-sample reference")
     a = p.parse_args(argv)
@@ -75,7 +76,8 @@ def main(argv: list[str]) -> int:
           f"{os.cpu_count()} cores ({_cpu()}); {_load()}")
     frame, rig = _setup(a.task)
     _speed_table(frame, rig, a.view, sizes, samples)
-    _noise_table(frame, rig, a.view, noise_w, noise_h, samples, a.reference)
+    if not a.speed_only:
+        _noise_table(frame, rig, a.view, noise_w, noise_h, samples, a.reference)
     return 0
 
 

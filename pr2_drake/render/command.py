@@ -152,7 +152,8 @@ def _render(scenario, states, request, args, report, progress) -> int:
         sinks.append(video.write)
     try:
         view = render_frames(rig, states, request, sinks, dataset=dataset,
-                             smoothing=0.0 if args.video is None else FOLLOW_SMOOTHING, progress=progress)
+                             smoothing=0.0 if args.video is None else FOLLOW_SMOOTHING,
+                             progress=progress)
     finally:
         if video is not None:
             video.close()

@@ -3,9 +3,9 @@ path tracer and by Drake's VTK raster from the same camera.
 
 The rig's testbed is built from the episode's own :class:`TestbedConfig` (same task, seed and
 start, so the same geometry), with the visuals of the raster preset asked for (the textured
-PBR visuals, or ``low``'s flat ones) whatever the episode's camera preset. Colour, depth and label images of the raster come from
-an extra VTK renderer in its SceneGraph (:meth:`RenderRig.raster`); depth and labels are the
-simulator's own, exact.
+PBR visuals, or ``low``'s flat ones) whatever the episode's camera preset. Colour, depth and
+label images of the raster come from an extra VTK renderer in its SceneGraph
+(:meth:`RenderRig.raster`); depth and labels are the simulator's own, exact.
 """
 
 from __future__ import annotations

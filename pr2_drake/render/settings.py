@@ -15,7 +15,8 @@ class PathTracingSettings:
         sky_strength: multiplier of the sky map's radiance.
         roughness: of flat-coloured surfaces without a material of their own.
         ground_radius: [m] radius of the disc that carries the ground to the horizon.
-        exposure: [stops]; view_transform: Blender's (``Khronos PBR Neutral``, ``AgX``, ``Standard``).
+        exposure: [stops]; view_transform: Blender's (``Khronos PBR Neutral``, ``AgX``,
+            ``Standard``).
         max_bounces: light path length; clamp_indirect: brightest indirect sample.
     """
 
