@@ -21,11 +21,11 @@ from pr2_drake.scenario import Scenario
 def _reference_state(scenario: Scenario, t: float) -> np.ndarray:
     """The plant state at ``t`` of the scenario's default (System) agent, advanced as
     ``run`` advances it, with no recorder in the diagram."""
-    from pr2_drake.agents import instantiate_agent, load_agent_class
-    from pr2_drake.episode import CHECK_EVERY, Episode, agent_spec, wire_system
+    from pr2_drake.agents import DEFAULT_AGENTS, instantiate_agent, load_agent_class
+    from pr2_drake.episode import CHECK_EVERY, Episode, wire_system
 
     def wire(builder, testbed):
-        agent = instantiate_agent(load_agent_class(agent_spec(scenario)),
+        agent = instantiate_agent(load_agent_class(DEFAULT_AGENTS[scenario.task]),
                                   priors=dict(testbed.scene.priors), task=scenario.task,
                                   seed=scenario.seed)
         return wire_system(agent)(builder, testbed)
@@ -43,7 +43,7 @@ def test_resimulation_is_the_run_episode():
     assert [s.requested for s in states] == [0.5, 1.0]  # 7 s lies after the episode's end
     assert [s.time for s in states] == pytest.approx([0.5, 1.0], abs=1e-6)
     np.testing.assert_array_equal(states[1].x, _reference_state(scenario, 1.0))
-    from pr2_drake.episode import run_episode
+    from pr2_drake.render.resim import run_episode  # the run path the render package uses
 
     plain = run_episode(scenario)
     for key in ("wall_time", "real_time_factor"):

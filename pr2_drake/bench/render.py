@@ -63,7 +63,8 @@ def main(argv: list[str]) -> int:
     p.add_argument("--quick", action="store_true",
                    help="160x120 only, 1 and 4 samples, a 64-sample reference")
     a = p.parse_args(argv)
-    from pr2_drake.render.command import INSTALL_HINT, path_tracer_available
+    from pr2_drake.render import INSTALL_HINT
+    from pr2_drake.render.command import path_tracer_available
 
     if not path_tracer_available():
         raise ValueError(INSTALL_HINT)

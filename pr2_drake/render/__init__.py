@@ -8,3 +8,7 @@ while Drake's VTK raster draws the same camera for comparison and gives exact de
 labels (:mod:`.frames`). Light: the testbed's sun and sky map (:mod:`.light`); settings in
 ``models/textures/path_tracing.yaml`` (:mod:`.settings`).
 """
+
+INSTALL_HINT = ("the path tracer needs Blender's Cycles (the bpy wheel, Python 3.11): "
+                "pip install 'pr2-drake[photoreal]'")
+"""What to install for the path tracer: the one line ``pr2-drake render`` prints without it."""

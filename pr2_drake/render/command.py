@@ -17,10 +17,9 @@ import math
 import sys
 from pathlib import Path
 
+from pr2_drake.render import INSTALL_HINT
 from pr2_drake.render.view import ENGINES, VIEWS
 
-INSTALL_HINT = ("the path tracer needs Blender's Cycles (the bpy wheel, Python 3.11): "
-                "pip install 'pr2-drake[photoreal]'")
 MAX_FRAMES = 100000
 
 

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pr2_drake.render import INSTALL_HINT
 from pr2_drake.render.light import Lighting
 from pr2_drake.render.meshes import SurfaceMaterial
 from pr2_drake.render.scene import SceneExport
@@ -35,8 +36,7 @@ def import_bpy():
     try:
         import bpy
     except ImportError as e:
-        raise ImportError(f"the path tracer needs Blender's Cycles (bpy): pip install "
-                          f"'pr2-drake[photoreal]' ({e})") from None
+        raise ImportError(f"{INSTALL_HINT} ({e})") from None
     return bpy
 
 
