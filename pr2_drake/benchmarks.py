@@ -25,6 +25,8 @@
     pr2-drake bench stairs [--quick] [--repeats 5]
         up then down staircases per riser height: falls, time, real-time factor
         (pr2_drake.bench.stairs).
+    pr2-drake bench render [--sizes ...] [--samples 1,4,16,64] [--quick]
+        the path tracer: seconds per frame and noise against samples (pr2_drake.bench.render).
 """
 
 from __future__ import annotations
@@ -255,7 +257,8 @@ BENCHMARKS = {"sim": bench_sim, "camera": bench_camera, "startup": bench_startup
               "perception": _module_benchmark("perception"),
               "jumping": _module_benchmark("jumping"),
               "stairs": _module_benchmark("stairs"),
-              "sandbox": _module_benchmark("sandbox")}
+              "sandbox": _module_benchmark("sandbox"),
+              "render": _module_benchmark("render")}
 """Every ``pr2-drake bench`` command by name; the CLI's choices come from here."""
 
 

@@ -14,6 +14,7 @@ the ``--set`` overrides.
     pr2-drake controller-server [--task N] [--port 8800] [...]   (pr2_drake.porting.cli)
     pr2-drake pr2-launch FOLDER N [--report JSON] [--port P] [--seed S]
     pr2-drake bench {sim,camera,startup,walking,whole-body,perception,...} [...]
+    pr2-drake render [YAML] --task N (--times 2.0,5.5 | --every 0.5 | --video out.mp4) [...]
     pr2-drake tasks
 
 Heavy imports (pydrake) happen inside the commands so that ``--help`` answers at once.
@@ -364,6 +365,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("what", choices=(*BENCHMARKS, "all"))
     p.add_argument("rest", nargs=argparse.REMAINDER, help="options of that benchmark")
     p.set_defaults(func=cmd_bench)
+
+    from pr2_drake.render.command import add_parser as add_render_parser
+
+    add_render_parser(sub, _add_episode_args, scenario_from_args)
 
     p = sub.add_parser("tasks", help="list the tasks")
     p.set_defaults(func=cmd_tasks)

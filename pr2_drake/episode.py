@@ -384,7 +384,8 @@ def _writable(p: Path) -> bool:
 
 def run_episode(scenario: Scenario, *, meshcat: Meshcat | None = None,
                 record: str | None = None, progress: TextIO | None = None,
-                record_camera: str | None = None, camera_depth: bool = False) -> dict[str, Any]:
+                record_camera: str | None = None, camera_depth: bool = False,
+                observe: Wiring | None = None) -> dict[str, Any]:
     """Build the scenario, run its agent until the episode ends, and return the report.
 
     Args:
@@ -395,6 +396,9 @@ def run_episode(scenario: Scenario, *, meshcat: Meshcat | None = None,
         record_camera: write the head camera's colour stream to this mp4 file at the camera's
             rate (turns the camera on if the scenario has it off); ``camera_depth``: put the
             depth, as a colour map, beside the colour.
+        observe: ``observe(builder, testbed)`` adds blocks that watch the episode (they read
+            testbed outputs and drive none of its inputs), e.g. ``pr2-drake render``'s state
+            recorder; wired after the agent.
 
     Raises:
         ScenarioError (a ValueError): the episode could not start (bad scenario, agent spec,
@@ -420,9 +424,9 @@ def run_episode(scenario: Scenario, *, meshcat: Meshcat | None = None,
         if scenario.task is None and diagram.task is not None:
             scenario = replace(scenario, task=diagram.task)
             scenario.validate()
-        episode = _build(scenario, _with_recorder(
+        episode = _build(scenario, _with_observer(_with_recorder(
             lambda b, tb: wire_diagram(b, tb, diagram, priors=dict(tb.scene.priors), **context),
-            record_camera, camera_depth, recorders), meshcat)
+            record_camera, camera_depth, recorders), observe), meshcat)
         policy = None
     else:
         try:
@@ -439,8 +443,8 @@ def run_episode(scenario: Scenario, *, meshcat: Meshcat | None = None,
                     f"agent {spec!r} is neither a Drake System nor has next_action(obs)")
             return agent
 
-        episode = _build(scenario, _with_recorder(wire, record_camera, camera_depth, recorders),
-                         meshcat)
+        episode = _build(scenario, _with_observer(
+            _with_recorder(wire, record_camera, camera_depth, recorders), observe), meshcat)
         policy = None if is_system_agent(episode.blocks) else episode.blocks
     episode.recorder = recorders[0] if recorders else None
     if meshcat is not None:
@@ -516,6 +520,19 @@ def _with_recorder(wire: Wiring | None, path: str | None, depth: bool, box: list
         return blocks
 
     return wire_and_record
+
+
+def _with_observer(wire: Wiring | None, observe: Wiring | None) -> Wiring | None:
+    """``wire``, then ``observe`` (see :func:`run_episode`); the blocks are ``wire``'s."""
+    if observe is None:
+        return wire
+
+    def wire_and_observe(builder: DiagramBuilder, testbed: Testbed):
+        blocks = wire(builder, testbed) if wire is not None else None
+        observe(builder, testbed)
+        return blocks
+
+    return wire_and_observe
 
 
 def _build(scenario: Scenario, wire: Wiring | None, meshcat) -> Episode:
