@@ -4,7 +4,7 @@ The renderer lives in a SceneGraph of its own (:func:`add_camera_scene_graph`): 
 perception geometry whose frame poses are computed only when a frame is rendered. In the
 plant's SceneGraph a renderer would have every geometry pose pushed into VTK at every physics
 step (0.25-0.35 CPU s per simulated s measured on Task 6, standing, with no frame rendered;
-benchmarks/README.md).
+docs/benchmarks.md).
 """
 
 
@@ -162,7 +162,7 @@ class RenderPreset:
             sky light (16 took 430-470 CPU ms a frame against 280-300 with the five
             hand-placed lights before them, too slow for 5 fps; 8 gave 5.0-5.4 fps on two
             idle cores, at the target's edge; 4, as at ``medium``, 5.7-6.3 against 5.0-6.2 for
-            the five before them, and look the same; benchmarks/README.md).
+            the five before them, and look the same; docs/benchmarks.md).
         environment_map: Drake's own image-based lighting from ``models/textures/sky.png``
             (prefiltered diffuse and specular, so metallic surfaces reflect the sky). Off in
             every preset: VTK prefilters the map (irradiance, specular and BRDF tables of fixed

@@ -149,7 +149,7 @@ def cmd_run(args) -> int:
     from pydrake.geometry import Meshcat
 
     from pr2_drake.compete.command import check_isolate_flags, run_isolated
-    from pr2_drake.episode import check_output_path, run_episode
+    from pr2_drake.run import check_output_path, run_episode
 
     check_isolate_flags(args)
     scenario = scenario_from_args(args, seed=args.seed)
@@ -203,7 +203,7 @@ def _parse_seeds(text: str) -> list[int]:
 
 
 def _eval_one(scenario):
-    from pr2_drake.episode import run_episode
+    from pr2_drake.run import run_episode
 
     return run_episode(scenario)
 
@@ -234,11 +234,25 @@ def summarize(reports: list[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
+def _collect(results, n: int) -> list[dict[str, Any]]:
+    """The reports of ``results`` as they come, with a line each on stderr."""
+    reports: list[dict[str, Any]] = []
+    start = time.perf_counter()
+    for r in results:
+        reports.append(r)
+        print(f"  seed {r['seed']:>4}: score {r['score']:>5g}/{r['max_score']:g} "
+              f"{r['termination']:<12} t = {r['sim_time']:6.2f} s  "
+              f"({len(reports)}/{n}, {time.perf_counter() - start:.0f} s)",
+              file=sys.stderr, flush=True)
+    return reports
+
+
 def cmd_eval(args) -> int:
     from dataclasses import replace
 
     from pr2_drake.agents import load_agent_class
-    from pr2_drake.episode import agent_spec, check_output_path
+    from pr2_drake.run import agent_spec, check_output_path
+    from pr2_drake.tasks import task_id
 
     seeds = _parse_seeds(args.seeds)
     base = scenario_from_args(args)
@@ -247,26 +261,20 @@ def cmd_eval(args) -> int:
     check_output_path(args.out, "--out")
     if not base.diagram:
         load_agent_class(agent_spec(base))  # a bad spec fails here, once, not in every worker
-    task = base.task
+    task = task_id(base.task)
     jobs = args.jobs
     work = [replace(base, seed=s) for s in seeds]
-    reports: list[dict[str, Any]] = []
-    start = time.perf_counter()
     print(f"evaluating task {task} over {len(seeds)} seeds with {jobs} job(s)", file=sys.stderr)
     if jobs == 1:
-        results = map(_eval_one, work)
+        reports = _collect(map(_eval_one, work), len(work))
     else:
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor
 
-        pool = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"))
-        results = pool.map(_eval_one, work)
-    for r in results:
-        reports.append(r)
-        print(f"  seed {r['seed']:>4}: score {r['score']:>5g}/{r['max_score']:g} "
-              f"{r['termination']:<12} t = {r['sim_time']:6.2f} s  "
-              f"({len(reports)}/{len(seeds)}, {time.perf_counter() - start:.0f} s)",
-              file=sys.stderr, flush=True)
+        # Shut down before returning: a pool left to the interpreter's exit closes its
+        # wake-up pipe under its own thread ("Exception ignored ... Bad file descriptor").
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn")) as pool:
+            reports = _collect(pool.map(_eval_one, work), len(work))
     summary = summarize(reports)
     print(f"\ntask {task}: {summary['episodes']} episodes")
     print(f"  success rate      {100 * summary['success_rate']:.1f} %")
@@ -300,7 +308,7 @@ def cmd_leaderboard(args) -> int:
 
 
 def cmd_bench(args) -> int:
-    from pr2_drake.benchmarks import run_benchmark
+    from pr2_drake.bench import run_benchmark
 
     return run_benchmark(args.what, args.rest)
 
@@ -359,7 +367,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_controller_server_parser(sub)
     add_pr2_launch_parser(sub)
 
-    from pr2_drake.benchmarks import BENCHMARKS
+    from pr2_drake.bench import BENCHMARKS
 
     p = sub.add_parser("bench", help="benchmarks: " + ", ".join(BENCHMARKS))
     p.add_argument("what", choices=(*BENCHMARKS, "all"))

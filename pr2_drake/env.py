@@ -21,7 +21,7 @@ from pydrake.geometry import Meshcat
 from pr2_drake.episode import Episode
 from pr2_drake.observation import observation_from_ports, parse_action
 from pr2_drake.ports import JointGroupCommand
-from pr2_drake.scenario import Scenario
+from pr2_drake.scenario import Scenario, check_control_dt
 from pr2_drake.tasks.base import EpisodeStatus
 
 
@@ -188,11 +188,16 @@ class Env:
     @classmethod
     def from_episode(cls, episode: Episode, *, control_dt: float | None = None) -> "Env":
         """An Env over an already built episode without agent blocks (used by
-        :func:`pr2_drake.episode.run_episode` for ``next_action`` agents)."""
+        :func:`pr2_drake.run.run_episode` for ``next_action`` agents; ``control_dt``: the
+        agent's own period, checked here).
+
+        Raises:
+            ScenarioError: ``control_dt`` is not a valid control period.
+        """
+        control_dt = control_dt or episode.scenario.control_dt
+        check_control_dt(control_dt)
         env = cls.__new__(cls)
-        env._scenario = replace(episode.scenario, control_dt=control_dt
-                                or episode.scenario.control_dt)
-        env._scenario.validate()
+        env._scenario = replace(episode.scenario, control_dt=control_dt)
         env._meshcat = episode.testbed.meshcat
         env._adopt(episode)
         return env

@@ -1,14 +1,17 @@
 """One episode: a scenario built into a diagram, simulated, judged and reported.
 
 This is the one place where the testbed, the agent's blocks and the ``Simulator`` are put
-together (:class:`Episode`), where an episode's end is decided (:meth:`Episode.judge`: the
-referee, the time limit, divergence) and where faults are named (:meth:`Episode.advance_to`).
-``pr2-drake run`` and ``eval``, :class:`pr2_drake.env.Env`, the gymnasium wrapper, the
-benchmarks and the tests all go through it::
+together (:class:`Episode`), where the scenario is validated, where an episode's end is decided
+(:meth:`Episode.judge`: the referee, the time limit, divergence) and where faults are named
+(:meth:`Episode.advance_to`). ``pr2-drake run`` and ``eval`` (:mod:`pr2_drake.run`),
+:class:`pr2_drake.env.Env`, the gymnasium wrapper, the competition, the benchmarks and the
+tests all go through it; nothing above it is imported here::
 
-    from pr2_drake.episode import run_episode
-    from pr2_drake.scenario import Scenario
-    report = run_episode(Scenario(task=1, seed=7))
+    from pr2_drake.episode import Episode, wire_system
+    from pr2_drake.controllers.standing import StandingController
+    episode = Episode(Scenario(task=1, seed=7), wire_system(StandingController()))
+    episode.initialize()
+    status = episode.advance_to(1.0)
 
 Every end has a name (``report["termination"]``) and keeps the points earned before it:
 ``completed``, ``fell``, ``left_region``, ``timeout``, ``diverged`` (non-finite state, Drake's
@@ -20,27 +23,18 @@ its exception's type and message) and ``agent_exit`` (the agent called ``sys.exi
 from __future__ import annotations
 
 import gc
-import math
-import time
 import warnings
 from dataclasses import replace
 from pathlib import Path
-from typing import Any, Callable, TextIO
+from typing import Any, Callable
 
 import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, System
 
-from pr2_drake.agents import (
-    DEFAULT_AGENTS,
-    instantiate_agent,
-    is_policy_agent,
-    is_system_agent,
-    load_agent_class,
-)
 from pr2_drake.ports import P_WB
-from pr2_drake.scenario import Scenario, ScenarioError
+from pr2_drake.scenario import Scenario
 from pr2_drake.sleep import ObjectSleeper
 from pr2_drake.tasks.base import EpisodeStatus
 from pr2_drake.testbed import Testbed
@@ -55,6 +49,7 @@ _TESTBED_DIRS = (str(_PACKAGE / "tasks"),)
 _SLEEP_FILE = str(_PACKAGE / "sleep.py")
 
 Wiring = Callable[[DiagramBuilder, Testbed], Any]
+SceneBuilder = Callable[[Any, np.random.Generator], Any]  # f(plant, rng) -> Scene
 
 
 class Episode:
@@ -66,6 +61,9 @@ class Episode:
             already in ``builder``); its return value is kept as :attr:`blocks`. None: no
             blocks (the caller fixes the testbed's inputs, as :class:`pr2_drake.env.Env` does).
         meshcat: draw to this Meshcat.
+        scene_builder: ``f(plant, rng) -> Scene`` in place of the scenario's task or flat
+            ground (a benchmark's own terrain, e.g. the stairs rig); the scenario's task must
+            be None.
 
     Attributes:
         testbed, diagram, simulator, context: the built system and its root context.
@@ -78,13 +76,16 @@ class Episode:
     """
 
     def __init__(self, scenario: Scenario, wire: Wiring | None = None,
-                 meshcat: Meshcat | None = None):
+                 meshcat: Meshcat | None = None, scene_builder: SceneBuilder | None = None):
         scenario.validate()
         # Free the diagrams of earlier episodes first: their reference cycles (see
         # pr2_drake.lifetime) wait for a full collection, and each holds ~35 MB.
         gc.collect()
         self.scenario = scenario
-        testbed = Testbed(scenario.testbed_config(), meshcat)
+        config = scenario.testbed_config()
+        if scene_builder is not None:
+            config = replace(config, scene_builder=scene_builder)
+        testbed = Testbed(config, meshcat)
         builder = DiagramBuilder()
         builder.AddSystem(testbed)
         self.blocks = wire(builder, testbed) if wire is not None else None
@@ -326,260 +327,3 @@ def warn_if_uncollectable(system: System) -> None:
                 "episode's diagram will stay in memory until the process ends; add "
                 "`__slots__ = ()` to the class (see pr2_drake.lifetime)", stacklevel=3)
             return
-
-
-# -- the whole run --------------------------------------------------------------------------
-class Progress:
-    """Prints 'sim time / limit, score, real-time factor' every ``every`` wall seconds."""
-
-    def __init__(self, stream: TextIO | None, limit: float, every: float = 2.0):
-        self.stream, self.limit, self.every = stream, limit, every
-        self.start = time.perf_counter()
-        self.last = self.start
-
-    def __call__(self, t: float, status: EpisodeStatus, force: bool = False) -> None:
-        now = time.perf_counter()
-        if self.stream is None or (not force and now - self.last < self.every):
-            return
-        self.last = now
-        wall = now - self.start
-        rtf = t / wall if wall > 0 else float("nan")
-        limit = "" if math.isinf(self.limit) else f"/{self.limit:.0f}"
-        score = f"  score {status.score:g}/{status.max_score:g}" if status.max_score else ""
-        print(f"  t = {t:6.2f}{limit} s{score}  real-time factor {rtf:4.2f}", file=self.stream,
-              flush=True)
-
-
-CHECK_EVERY = 0.05  # simulated seconds between verdicts of a System agent's episode [s]
-
-
-def agent_spec(scenario: Scenario) -> str:
-    """The agent a scenario runs: its ``agent``, its ``diagram``, or the task's default."""
-    if scenario.diagram:
-        return scenario.diagram
-    if scenario.agent:
-        return scenario.agent
-    return DEFAULT_AGENTS[scenario.task]
-
-
-def check_output_path(path: str | None, what: str) -> None:
-    """Fail before an episode starts if ``path`` cannot be written (a folder, no parent)."""
-    if path is None:
-        return
-    p = Path(path)
-    if p.is_dir():
-        raise ScenarioError(f"{what} {path}: is a folder; give a file name")
-    parent = p.parent if str(p.parent) else Path(".")
-    if not parent.is_dir():
-        raise ScenarioError(f"{what} {path}: folder {parent} does not exist")
-    if not _writable(p):
-        raise ScenarioError(f"{what} {path}: cannot write there")
-
-
-def _writable(p: Path) -> bool:
-    import os
-
-    return os.access(p if p.exists() else (p.parent if str(p.parent) else Path(".")), os.W_OK)
-
-
-def run_episode(scenario: Scenario, *, meshcat: Meshcat | None = None,
-                record: str | None = None, progress: TextIO | None = None,
-                record_camera: str | None = None, camera_depth: bool = False,
-                observe: Wiring | None = None) -> dict[str, Any]:
-    """Build the scenario, run its agent until the episode ends, and return the report.
-
-    Args:
-        scenario: the episode (see :class:`Scenario`).
-        meshcat: draw to this Meshcat (paced at ``scenario.realtime_rate`` unless recording).
-        record: write a self-contained Meshcat replay (HTML) to this path.
-        progress: where to print progress lines (None: silent).
-        record_camera: write the head camera's colour stream to this mp4 file at the camera's
-            rate (turns the camera on if the scenario has it off); ``camera_depth``: put the
-            depth, as a colour map, beside the colour.
-        observe: ``observe(builder, testbed)`` adds blocks that watch the episode (they read
-            testbed outputs and drive none of its inputs), e.g. ``pr2-drake render``'s state
-            recorder; wired after the agent.
-
-    Raises:
-        ScenarioError (a ValueError): the episode could not start (bad scenario, agent spec,
-            agent constructor, diagram file or output path). Once it runs, every fault ends
-            the episode with a named termination in the report instead.
-    """
-    wall_start = time.perf_counter()
-    scenario.validate()
-    check_output_path(record, "--record")
-    spec = agent_spec(scenario)
-    context = dict(task=scenario.task, seed=scenario.seed, **scenario.agent_params)
-    check_output_path(record_camera, "--record-camera")
-    if record_camera and (scenario.camera is None or not scenario.camera.enabled):
-        scenario = replace(scenario, camera=replace(scenario.camera or _task_camera(scenario),
-                                                    enabled=True))
-    if record and meshcat is None:
-        meshcat = quiet_meshcat()
-    recorders: list = []
-    if scenario.diagram:
-        from pr2_drake.diagrams import load_diagram_spec, wire_diagram
-
-        diagram = load_diagram_spec(scenario.diagram)
-        if scenario.task is None and diagram.task is not None:
-            scenario = replace(scenario, task=diagram.task)
-            scenario.validate()
-        episode = _build(scenario, _with_observer(_with_recorder(
-            lambda b, tb: wire_diagram(b, tb, diagram, priors=dict(tb.scene.priors), **context),
-            record_camera, camera_depth, recorders), observe), meshcat)
-        policy = None
-    else:
-        try:
-            cls = load_agent_class(spec)
-        except ValueError as e:
-            raise ScenarioError(str(e)) from None
-
-        def wire(builder: DiagramBuilder, testbed: Testbed):
-            agent = instantiate_agent(cls, priors=dict(testbed.scene.priors), **context)
-            if is_system_agent(agent):
-                return wire_system(agent)(builder, testbed)
-            if not is_policy_agent(agent):
-                raise ScenarioError(
-                    f"agent {spec!r} is neither a Drake System nor has next_action(obs)")
-            return agent
-
-        episode = _build(scenario, _with_observer(
-            _with_recorder(wire, record_camera, camera_depth, recorders), observe), meshcat)
-        policy = None if is_system_agent(episode.blocks) else episode.blocks
-    episode.recorder = recorders[0] if recorders else None
-    if meshcat is not None:
-        frame_robot(meshcat, episode.testbed)
-    if meshcat is not None and record:
-        meshcat.StartRecording()
-    if meshcat is not None and scenario.realtime_rate and not record:
-        episode.simulator.set_target_realtime_rate(scenario.realtime_rate)
-    show = Progress(progress, episode.limit)
-    sim_start = time.perf_counter()
-    try:
-        if policy is None:
-            _run_system(episode, show)
-        else:
-            _run_policy(episode, policy, show)
-    finally:
-        if episode.recorder is not None:
-            episode.recorder.close()
-    sim_wall = time.perf_counter() - sim_start
-    show(episode.time, episode.status, force=True)
-    if meshcat is not None and record:
-        meshcat.StopRecording()
-        meshcat.PublishRecording()
-        Path(record).write_text(meshcat.StaticHtml())
-    return episode.report(spec, time.perf_counter() - wall_start, sim_wall)
-
-
-def _task_camera(scenario: Scenario):
-    """The camera settings the scenario's task asks for (its YAML block), or the defaults."""
-    from pr2_drake.camera import CameraSettings
-
-    if scenario.task is None:
-        return CameraSettings()
-    from pr2_drake.tasks import get_task
-
-    block = dict(get_task(scenario.task).spec.camera)
-    block.pop("enabled", None)
-    return CameraSettings(**block)
-
-
-def quiet_meshcat() -> Meshcat:
-    """A Meshcat for recording only: Drake's "listening at http://..." line is not printed
-    (nobody was asked to open that viewer)."""
-    import logging
-
-    log = logging.getLogger("drake")
-    level = log.level
-    log.setLevel(logging.WARNING)
-    try:
-        return Meshcat()
-    finally:
-        log.setLevel(level)
-
-
-def frame_robot(meshcat: Meshcat, testbed: Testbed) -> None:
-    """Point Meshcat's camera at the robot's start and the task's region (the replay opens
-    there instead of at Meshcat's default view)."""
-    from pr2_drake.viz import overview_eye_target
-
-    eye, target = overview_eye_target(testbed)
-    meshcat.SetCameraPose(eye, target)
-
-
-def _with_recorder(wire: Wiring | None, path: str | None, depth: bool, box: list) -> Wiring | None:
-    if path is None:
-        return wire
-
-    def wire_and_record(builder: DiagramBuilder, testbed: Testbed):
-        from pr2_drake.video import add_camera_recorder
-
-        blocks = wire(builder, testbed) if wire is not None else None
-        box.append(add_camera_recorder(builder, testbed, path, depth))
-        return blocks
-
-    return wire_and_record
-
-
-def _with_observer(wire: Wiring | None, observe: Wiring | None) -> Wiring | None:
-    """``wire``, then ``observe`` (see :func:`run_episode`); the blocks are ``wire``'s."""
-    if observe is None:
-        return wire
-
-    def wire_and_observe(builder: DiagramBuilder, testbed: Testbed):
-        blocks = wire(builder, testbed) if wire is not None else None
-        observe(builder, testbed)
-        return blocks
-
-    return wire_and_observe
-
-
-def _build(scenario: Scenario, wire: Wiring | None, meshcat) -> Episode:
-    """An Episode, with wiring faults (a port of the agent that fits no testbed port) named."""
-    try:
-        return Episode(scenario, wire, meshcat)
-    except ScenarioError:
-        raise
-    except ValueError as e:
-        raise ScenarioError(" ".join(str(e).split())) from None
-    except RuntimeError as e:
-        raise ScenarioError(f"could not build the episode: {' '.join(str(e).split())}") from None
-
-
-def _run_system(episode: Episode, show: Progress) -> None:
-    status = episode.initialize()
-    while not status.done:
-        status = episode.advance_to(episode.time + CHECK_EVERY)
-        show(episode.time, status)
-
-
-def _run_policy(episode: Episode, agent, show: Progress) -> None:
-    from pr2_drake.env import Env, InvalidAction
-
-    env = Env.from_episode(episode, control_dt=getattr(agent, "control_dt", None))
-    obs = env.reset()
-    if hasattr(agent, "reset") and not _call_agent(episode, agent.reset, obs)[1]:
-        return
-    done = env.status.done
-    while not done:
-        action, ok = _call_agent(episode, agent.next_action, obs)
-        if not ok:
-            return
-        try:
-            done, _, obs = env.step(action)
-        except InvalidAction as e:
-            episode.end("invalid_action", str(e))
-            return
-        show(episode.time, env.status)
-
-
-def _call_agent(episode: Episode, method, *args):
-    """Call an agent's method; a raise or sys.exit ends the episode. Returns (result, ok)."""
-    try:
-        return method(*args), True
-    except SystemExit as e:
-        episode.end("agent_exit", f"the agent called sys.exit({e.code!r})")
-    except Exception as e:
-        episode.end("agent_error", f"{type(e).__name__}: {' '.join(str(e).split())}")
-    return None, False

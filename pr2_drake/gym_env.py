@@ -24,7 +24,7 @@ except ImportError as e:  # pragma: no cover - exercised only without the extra
     raise ImportError("pr2_drake.gym_env needs gymnasium: pip install -e '.[rl]'") from e
 
 from pr2_drake.env import Env
-from pr2_drake.observation import state_vectors_from_obs
+from pr2_drake.observation import state_vectors
 from pr2_drake.ports import BODY_STATE_SIZE, JOINT_STATE_SIZE, N_LEGS
 from pr2_drake.robot.params import load_robot_params
 
@@ -57,7 +57,7 @@ class Pr2GymEnv(gym.Env):
         self._score = 0.0
 
     def _vector(self, obs: dict[str, Any]) -> np.ndarray:
-        joint_state, body_state = state_vectors_from_obs(obs)
+        joint_state, body_state = state_vectors(obs, check_finite=False)
         return np.concatenate([joint_state, body_state]).astype(np.float32)
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):

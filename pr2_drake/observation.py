@@ -153,17 +153,51 @@ def observation_from_ports(values: dict[str, Any], time: float, priors: dict[str
     return obs
 
 
-def state_vectors_from_obs(obs: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
-    """The inverse of :func:`joint_and_body_obs`: (joint_state, body_state) vectors."""
-    js = obs["agent"]["joint_state"]
-    bs = obs["agent"]["body_state"]
-    joint_state = np.concatenate([
-        js["arms_positions"], js["legs_positions"], js["arms_velocities"], js["legs_velocities"],
-        js["arms_applied_effort"], js["legs_applied_effort"],
-    ]).astype(float)
-    body_state = np.concatenate([
-        bs["world_pos"], bs["world_orient"], bs["linear_velocities"], bs["angular_velocities"],
-    ]).astype(float)
+def state_vectors(obs: dict[str, Any], check_finite: bool = True
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The ``joint_state`` (54) and ``body_state`` (13) vectors of an observation dictionary:
+    the inverse of :func:`joint_and_body_obs`, and the one converter every controller's and
+    agent's dictionary interface uses.
+
+    Reads ``obs["agent"]["joint_state"]`` (arms optional: zeros; arm efforts from
+    ``arms_efforts`` or ``arms_applied_effort``, NaN = unknown when absent; leg efforts from
+    ``legs_applied_effort``, zeros when absent) and ``obs["agent"]["body_state"]`` (world_pos,
+    world_orient (w, x, y, z), linear_velocities, angular_velocities).
+
+    Raises:
+        ValueError: an entry is missing or malformed, or (``check_finite``) a position,
+            velocity or pose is not finite; the message names it.
+    """
+    try:
+        agent = obs["agent"]
+        js = agent["joint_state"]
+        bs = agent["body_state"]
+        legs_q = np.asarray(js["legs_positions"], dtype=float).reshape(-1)
+        legs_v = np.asarray(js["legs_velocities"], dtype=float).reshape(-1)
+        arms_q = np.asarray(js.get("arms_positions", np.zeros(N_ARMS)), dtype=float).reshape(-1)
+        arms_v = np.asarray(js.get("arms_velocities", np.zeros(N_ARMS)), dtype=float).reshape(-1)
+        arms_e = js.get("arms_efforts", js.get("arms_applied_effort"))
+        arms_e = (np.full(N_ARMS, np.nan) if arms_e is None
+                  else np.asarray(arms_e, dtype=float).reshape(-1))
+        legs_e = np.asarray(js.get("legs_applied_effort", np.zeros(N_LEGS)),
+                            dtype=float).reshape(-1)
+        pos = np.asarray(bs["world_pos"], dtype=float).reshape(-1)
+        quat = np.asarray(bs["world_orient"], dtype=float).reshape(-1)
+        lin = np.asarray(bs["linear_velocities"], dtype=float).reshape(-1)
+        ang = np.asarray(bs["angular_velocities"], dtype=float).reshape(-1)
+    except (KeyError, TypeError) as err:
+        raise ValueError(f"obs: missing or malformed observation entry: {err}") from err
+    for name, arr, n in (("legs_positions", legs_q, N_LEGS), ("legs_velocities", legs_v, N_LEGS),
+                         ("arms_positions", arms_q, N_ARMS), ("arms_velocities", arms_v, N_ARMS),
+                         ("world_pos", pos, 3), ("world_orient", quat, 4),
+                         ("linear_velocities", lin, 3), ("angular_velocities", ang, 3)):
+        if arr.shape != (n,) or (check_finite and not np.all(np.isfinite(arr))):
+            raise ValueError(f"obs: {name} must be {n} finite values, got {arr}")
+    for name, arr, n in (("arms_efforts", arms_e, N_ARMS), ("legs_applied_effort", legs_e, N_LEGS)):
+        if arr.shape != (n,):
+            raise ValueError(f"obs: {name} must be {n} values, got {arr}")
+    joint_state = np.concatenate([arms_q, legs_q, arms_v, legs_v, arms_e, legs_e])
+    body_state = np.concatenate([pos, quat, lin, ang])
     return joint_state, body_state
 
 

@@ -1,4 +1,4 @@
-"""Where the project's data lives: models/, tasks/, controllers/, diagrams/ and scenarios/.
+"""Where the project's data lives: models/, tasks/, params/, diagrams/ and scenarios/.
 
 In a source checkout (editable install) these are the top-level folders of the repository; in an
 installed wheel they ship inside the package under ``pr2_drake/share/``. Every loader asks this
@@ -10,11 +10,11 @@ from __future__ import annotations
 from pathlib import Path
 
 _PACKAGE_DIR = Path(__file__).resolve().parent
-_DATA_DIRS = ("models", "tasks", "controllers", "diagrams", "scenarios")
+_DATA_DIRS = ("models", "tasks", "params", "diagrams", "scenarios")
 
 
 def data_root() -> Path:
-    """The folder that holds models/, tasks/, controllers/ and diagrams/."""
+    """The folder that holds models/, tasks/, params/, diagrams/ and scenarios/."""
     checkout = _PACKAGE_DIR.parent
     if (checkout / "models" / "kuavo" / "params.yaml").is_file():
         return checkout
@@ -38,7 +38,7 @@ def resolve_user_path(path: str | Path, kind: str) -> Path:
     """Resolve a user-given file: as given if it exists, else relative to the data root.
 
     Args:
-        path: a path such as ``controllers/walking.yaml``.
+        path: a path such as ``params/controllers/walking.yaml``.
         kind: what the file is, for the error message (e.g. "controller parameters").
     """
     p = Path(path)

@@ -3,14 +3,15 @@
 In the style of Drake's ``hardware_sim.py``: a :class:`Scenario` is loaded with
 ``pydrake.common.yaml.yaml_load_typed`` from a file, then overridden field by field (the
 command line's ``--task``, ``--seed``, ... and ``--set key=value``), and
-:func:`pr2_drake.episode.run_episode` builds and runs it.
+:func:`pr2_drake.run.run_episode` builds and runs it. It is validated once, where running
+starts: :class:`pr2_drake.episode.Episode` calls :meth:`Scenario.validate`.
 
 Example (see ``scenarios/valve_seed7.yaml``)::
 
     task: valve            # id 1..6 or name, any case; omit for flat ground
     seed: 7
     agent: my_pkg.solver:Solver    # or path/to/solver.py:Solver; omit for the built-in agent
-    agent_params: {params: controllers/goal_planner.yaml}
+    agent_params: {params: params/agents/goal_planner.yaml}
     seconds: 30            # stop earlier than the task's limit
     plant: {time_step: 0.001, contact_approximation: lagged}
     sleep: {enabled: true, rest_time: 0.5}   # resting free objects sleep (task 6)
@@ -86,7 +87,7 @@ class Scenario:
         seed: episode seed; every random choice flows from it.
         agent: "module:Class" or "path/to/file.py:Class"; None = the task's built-in agent.
         agent_params: extra keyword arguments for the agent's constructor (typically
-            parameter files, e.g. ``{params: controllers/goal_planner.yaml}``); given only
+            parameter files, e.g. ``{params: params/agents/goal_planner.yaml}``); given only
             where the constructor accepts them.
         diagram: a diagram YAML (see :mod:`pr2_drake.diagrams`) whose blocks replace the agent.
         seconds: stop after this much simulated time [s]; None = the task's time limit
@@ -129,7 +130,7 @@ class Scenario:
             raise ScenarioError(f"seed must be a non-negative integer, got {self.seed!r}")
         if self.seconds != math.inf:  # inf: no limit (the Python API's choice; not in YAML)
             _positive("seconds", self.seconds)
-        _positive("control_dt", self.control_dt, upper=MAX_CONTROL_DT)
+        check_control_dt(self.control_dt)
         if not (isinstance(self.realtime_rate, (int, float)) and math.isfinite(self.realtime_rate)
                 and self.realtime_rate >= 0):
             raise ScenarioError(f"realtime_rate must be >= 0, got {self.realtime_rate!r}")
@@ -168,6 +169,12 @@ class Scenario:
         return yaml_dump_typed(self)
 
 
+def check_control_dt(value) -> None:
+    """Raise :class:`ScenarioError` unless ``value`` is None or a control period in
+    (0, MAX_CONTROL_DT] [s] (a scenario's, or a ``next_action`` agent's own)."""
+    _positive("control_dt", value, upper=MAX_CONTROL_DT)
+
+
 def _positive(name: str, value, upper: float = math.inf) -> None:
     if value is None:
         return
@@ -188,6 +195,9 @@ def load_scenario(path: typing.Union[str, Path, None] = None,
             value, or a YAML mapping (``"{seed: 3, plant: {time_step: 0.002}}"``).
         defaults: the scenario the file and overrides are merged onto.
 
+    The values are checked where running starts (:class:`pr2_drake.episode.Episode` calls
+    :meth:`Scenario.validate`); here only the YAML and the field types.
+
     Raises:
         ScenarioError: naming the file or the override and what is wrong with it.
     """
@@ -200,7 +210,6 @@ def load_scenario(path: typing.Union[str, Path, None] = None,
         scenario = _merge(scenario, file.read_text(), f"scenario {path}")
     for text in overrides:
         scenario = _merge(scenario, _override_yaml(text), f"override {text!r}")
-    scenario.validate()
     return scenario
 
 

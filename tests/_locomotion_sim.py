@@ -12,10 +12,11 @@ from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from pr2_drake.controllers.standing import StandingPolicy
 from pr2_drake.ports import BODY_STATE_SIZE, JOINT_STATE_SIZE, N_LEGS, JointGroupCommand
-from pr2_drake.robot.model import BASE_BODY, add_kuavo, standing_base_pose
+from pr2_drake.robot.model import add_kuavo, standing_base_pose
 from pr2_drake.scene import StartPose
 from pr2_drake.tasks import get_task
-from pr2_drake.episode import Episode, wire_system
+from pr2_drake.bench.rigs import Rig
+from pr2_drake.episode import wire_system
 from pr2_drake.scenario import Scenario
 
 
@@ -53,44 +54,36 @@ class TestController(LeafSystem):
         output.set_value(JointGroupCommand.position(q, p.arm_kp, p.arm_kd))
 
 
-class TaskSim:
+class TaskSim(Rig):
     """A task testbed driven by :class:`TestController`, ready to simulate."""
 
     __test__ = False
 
     def __init__(self, task: int, seed: int = 0, start: StartPose | None = None):
         self.controller = TestController()
-        episode = Episode(Scenario(task=task, seed=seed, start=start),
-                          wire_system(self.controller))
-        self.run = episode
-        self.testbed = tb = episode.testbed
-        self.diagram, self.simulator = episode.diagram, episode.simulator
-        self.tb_ctx = episode.tb_context
-        tb.GetInputPort("pick").FixValue(self.tb_ctx, "")
-        tb.GetInputPort("release").FixValue(self.tb_ctx, False)
-        self.plant = tb.plant
+        super().__init__(Scenario(task=task, seed=seed, start=start),
+                         wire_system(self.controller))
+        tb = self.testbed
+        tb.GetInputPort("pick").FixValue(self.tb_context, "")
+        tb.GetInputPort("release").FixValue(self.tb_context, False)
+        self.tb_ctx, self.plant_ctx = self.tb_context, self.plant_context
         self.robot = tb.robot
         self.scene = tb.scene
         self.spec = tb.task.spec
-        self.plant_ctx = episode.plant_context
-        self.base = self.plant.GetBodyByName(BASE_BODY, self.robot)
         self.simulator.Initialize()
 
-    @property
-    def time(self) -> float:
-        return self.simulator.get_context().get_time()
-
-    def advance(self, dt: float) -> None:
-        self.simulator.AdvanceTo(self.time + dt)
+    def advance_by(self, dt: float) -> None:
+        self.advance(self.time + dt)
 
     def advance_to(self, t: float) -> None:
-        self.simulator.AdvanceTo(t)
+        self.advance(t)
 
-    def episode(self):
+    def verdict(self):
+        """The referee's verdict (:class:`pr2_drake.tasks.base.EpisodeStatus`)."""
         return self.testbed.GetOutputPort("episode").Eval(self.tb_ctx)
 
     def items(self) -> list[str]:
-        return [e.item for e in self.episode().items]
+        return [e.item for e in self.verdict().items]
 
     def feedback(self) -> dict:
         return self.testbed.GetOutputPort("task_feedback").Eval(self.tb_ctx)

@@ -13,11 +13,12 @@ def desk_episode(seconds: float):
     from pr2_drake.episode import Episode, wire_system
     from pr2_drake.scenario import Scenario
     from pr2_drake.scene import StartPose
+    from pr2_drake.tasks import task_entry
 
     held = {}
 
     def wire(b, tb):
-        held["agent"] = ObjectSearchAgent(dict(tb.scene.priors))
+        held["agent"] = ObjectSearchAgent(dict(tb.scene.priors), **task_entry(6).agent_params)
         return wire_system(held["agent"])(b, tb)
 
     ep = Episode(Scenario(task=6, seed=0, seconds=seconds,

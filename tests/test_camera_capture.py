@@ -144,11 +144,8 @@ def test_testbed_exports_camera_capture_only_with_the_camera():
 
 
 def test_sequencer_asks_for_frames_only_while_it_looks():
-    from pr2_drake.agents.search.agent import (
-        ObjectSearchSequencer,
-        SearchAgentParams,
-        Stage,
-    )
+    from pr2_drake.agents.search.memory import SearchAgentParams, Stage
+    from pr2_drake.agents.search.sequencer import ObjectSearchSequencer
     from pr2_drake.agents.search.instruction import Instruction
     from pr2_drake.agents.search.navigation import NavigationParams
     from pr2_drake.agents.search.perception import Detection
@@ -182,14 +179,14 @@ def test_sequencer_asks_for_frames_only_while_it_looks():
     seq.GetInputPort("rgbd").FixValue(ctx, RgbdFrame(np.zeros((4, 4, 3), np.uint8),
                                                      np.ones((4, 4), np.float32)))
     port = seq.GetOutputPort("camera_capture")
-    assert seq.stage == Stage.NAVIGATE and port.Eval(ctx) is False
+    assert seq.memory(ctx).stage == Stage.NAVIGATE and port.Eval(ctx) is False
     sim = Simulator(seq, ctx)
     seen = {}
     t = 0.0
     while t < 1.0:
         t += 0.02
         sim.AdvanceTo(t)
-        seen.setdefault(seq.stage, set()).add(port.Eval(ctx))
+        seen.setdefault(seq.memory(ctx).stage, set()).add(port.Eval(ctx))
     assert seen[Stage.LOOK] == {True}
     assert Stage.APPROACH in seen and all(v == {False} for s, v in seen.items()
                                           if s != Stage.LOOK)
@@ -199,27 +196,29 @@ def test_task6_agent_renders_only_while_it_looks():
     """Seed 0 from before the desk (as the closed-loop pick test): the camera renders at the
     initialization and at the samples in LOOK up to the detection, never after it."""
     from tests._search_sim import desk_episode
-    from pr2_drake.agents.search.agent import Stage
+    from pr2_drake.agents.search.memory import Stage
 
     ep, agent = desk_episode(3.0)
     seq = agent.GetSubsystemByName("sequencer")
+    seq_context = seq.GetMyContextFromRoot(ep.context)
     renders = []
     sampler = ep.testbed.GetSubsystemByName("head_camera_sampler")
     render = sampler._render
 
     def counted(context, state):
-        renders.append((context.get_time(), seq.stage))
+        renders.append((context.get_time(), seq.memory(seq_context).stage))
         render(context, state)
 
     sampler._render = counted
     ep.initialize()
     ep.advance_to(2.5)
-    assert seq.p_WO is not None and seq.stage != Stage.LOOK, seq.log  # found, moved on
-    t_found = float(next(line for line in seq.log if "found" in line).split()[0])
-    t_look = float(next(line for line in seq.log if "-> LOOK" in line).split()[0])
+    m = seq.memory(seq_context)
+    assert m.p_WO is not None and m.stage != Stage.LOOK, m.log  # found, moved on
+    t_found = float(next(line for line in m.log if "found" in line).split()[0])
+    t_look = float(next(line for line in m.log if "-> LOOK" in line).split()[0])
     times = [t for t, _ in renders]
     assert times[0] == 0.0 and len(times) >= 5
-    assert all(t_look <= t <= t_found + 1e-9 for t in times[1:]), (renders, seq.log)
+    assert all(t_look <= t <= t_found + 1e-9 for t in times[1:]), (renders, m.log)
     assert all(stage == Stage.LOOK for _, stage in renders[1:])
     frame = ep.testbed.GetOutputPort("rgbd").Eval(ep.tb_context)
     assert frame.time == pytest.approx(times[-1])  # the last frame is kept afterwards

@@ -9,7 +9,7 @@ from pydrake.geometry import Role
 from pydrake.math import RigidTransform
 from pydrake.systems.analysis import Simulator
 
-from pr2_drake.bench.perception import ViewRig
+from pr2_drake.bench.rigs import ViewRig
 from pr2_drake.camera import CameraScenePoses, CameraSettings, RENDERER_NAME
 from pr2_drake.testbed import Testbed, TestbedConfig
 

@@ -9,7 +9,7 @@ import pytest
 from pr2_drake.compete.isolation import NO_BWRAP_ENV, IsolationUnavailable, works
 from pr2_drake.compete.proxy import run_sandboxed_episode
 from pr2_drake.compete.sandbox import SandboxLimits
-from pr2_drake.episode import run_episode
+from pr2_drake.run import run_episode
 from pr2_drake.scenario import Scenario
 from pr2_drake.scene import StartPose
 
@@ -93,15 +93,17 @@ def test_a_system_agent_in_the_sandbox_matches_the_same_agent_in_process(task, s
     same plant state as wired into the testbed, bit for bit."""
     from pr2_drake.agents import instantiate_agent, load_agent_class
     from pr2_drake.compete.proxy import state_digest
-    from pr2_drake.episode import Episode, Progress, _run_system, wire_system
+    from pr2_drake.drive import drive_blocks
+    from pr2_drake.episode import Episode, wire_system
+    from pr2_drake.run import agent_params
 
     scenario = Scenario(task=task, seed=0, agent=spec, seconds=0.3)
     r = run_sandboxed_episode(scenario, limits=LIMITS)
     assert r["steps"] == 300 and r["termination"] == "timeout"
     cls = load_agent_class(spec)
     episode = Episode(scenario, lambda b, tb: wire_system(instantiate_agent(
-        cls, priors=dict(tb.scene.priors), task=task, seed=0))(b, tb))
-    _run_system(episode, Progress(None, episode.limit))
+        cls, priors=dict(tb.scene.priors), task=task, seed=0, **agent_params(scenario)))(b, tb))
+    drive_blocks(episode)
     assert r["state_digest"] == state_digest(episode)
 
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from pr2_drake.env import Env
-from pr2_drake.episode import run_episode
+from pr2_drake.run import run_episode
 from pr2_drake.observation import observation_from_ports
 from pr2_drake.porting.clients import (
     ControllerClient,

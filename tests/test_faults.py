@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from pr2_drake.controllers.standing import StandingController
-from pr2_drake.episode import Episode, run_episode, wire_system
+from pr2_drake.episode import Episode, wire_system
+from pr2_drake.run import run_episode
 from pr2_drake.scenario import Scenario, ScenarioError
 from pr2_drake.scene import StartPose
 

@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from pr2_drake.controllers.centroidal_mpc import CentroidalMpc, leg_force_limits
+from pr2_drake.controllers.planning.centroidal_mpc import CentroidalMpc, leg_force_limits
 from pr2_drake.controllers.jump_params import JumpParams
 from pr2_drake.controllers.jumping import JumpController, check_jump_command
-from pr2_drake.controllers.wb_model import WholeBodyModel
+from pr2_drake.controllers.model import WholeBodyModel
 
 
 def _launch_problem(apex: float):
@@ -85,7 +85,7 @@ def test_jump_command_errors_name_the_port():
 @pytest.fixture(scope="module")
 def vertical_jump():
     """A 0.10 m vertical jump in closed loop (testbed, 1 ms SAP), sampled every 5 ms."""
-    from pr2_drake.bench.jumping import JumpSim
+    from pr2_drake.bench.rigs import JumpSim
 
     sim = JumpSim()
     sim.advance(1.0)
@@ -161,7 +161,7 @@ def test_bar_takeoff_timing_centres_the_passage_in_the_clear_window():
 
 
 def test_moving_bar_agent_jumps_over_the_bar_without_touching_it():
-    from pr2_drake.episode import run_episode
+    from pr2_drake.run import run_episode
     from pr2_drake.scenario import Scenario
 
     report = run_episode(Scenario(task=3, seed=0))

@@ -37,14 +37,11 @@ def _live_testbeds() -> int:
 
 
 def _run_episode(task, seed: int, seconds: float):
-    """One short episode through the public run_episode (Scenario API, or EpisodeOptions)."""
-    from pr2_drake import episode
-
-    if hasattr(episode, "EpisodeOptions"):
-        return episode.run_episode(episode.EpisodeOptions(task=task, seed=seed, seconds=seconds))
+    """One short episode through the public run_episode."""
+    from pr2_drake.run import run_episode
     from pr2_drake.scenario import Scenario
 
-    return episode.run_episode(Scenario(task=task, seed=seed, seconds=seconds))
+    return run_episode(Scenario(task=task, seed=seed, seconds=seconds))
 
 
 @pytest.mark.parametrize("task", [None, 1, 2, 3, 4, 5, 6])

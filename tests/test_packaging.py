@@ -23,7 +23,7 @@ def test_wheel_runs_outside_the_checkout(tmp_path):
     package_file, root = out.stdout.split()
     assert package_file.startswith(str(target))
     assert root.startswith(str(target)) and root.endswith("share")
-    for data in ("models/kuavo/kuavo.urdf", "controllers/standing.yaml", "diagrams/standing.yaml"):
+    for data in ("models/kuavo/kuavo.urdf", "params/controllers/standing.yaml", "diagrams/standing.yaml"):
         assert (Path(root) / data).is_file()
     run = subprocess.run([sys.executable, "-m", "pr2_drake.cli", "run", "--seconds", "0.05",
                           "--quiet"], cwd=tmp_path, env=env, capture_output=True, text=True)

@@ -7,14 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from pr2_drake.agents import DEFAULT_AGENTS
 from pr2_drake.agents.walk_to_goal import RockyRoadAgent, SlopeAgent
-from pr2_drake.controllers.footsteps import FlatTerrain, RoughTerrain, SlopeTerrain
-from pr2_drake.controllers.swing import SwingTrajectory
+from pr2_drake.controllers.planning.terrain import FlatTerrain, RoughTerrain, SlopeTerrain
+from pr2_drake.controllers.planning.swing import SwingTrajectory
 from pr2_drake.controllers.walking_params import WalkingParams
 from pr2_drake.episode import Episode, wire_system
 from pr2_drake.ports import P_WB
 from pr2_drake.scenario import Scenario
+from pr2_drake.tasks import task_entry
 
 SLOPE = math.radians(7.0)
 
@@ -57,20 +57,20 @@ def test_swing_lift_fraction_and_pitch():
 
 def test_walking_parameter_overrides_keep_the_rest():
     base = WalkingParams.load()
-    rough = base.with_overrides("controllers/walking_rough.yaml")
+    rough = base.with_overrides("params/controllers/walking_rough.yaml")
     assert rough.gait.blocked_touchdown_error > 0 and base.gait.blocked_touchdown_error == 0
     assert rough.gait.single_support == base.gait.single_support
     assert rough.qp == base.qp
 
 
 def test_default_agents_of_tasks_1_and_4():
-    assert DEFAULT_AGENTS[1] == "pr2_drake.agents.walk_to_goal:RockyRoadAgent"
-    assert DEFAULT_AGENTS[4] == "pr2_drake.agents.walk_to_goal:SlopeAgent"
+    assert task_entry(1).agent == "pr2_drake.agents.walk_to_goal:RockyRoadAgent"
+    assert task_entry(4).agent == "pr2_drake.agents.walk_to_goal:SlopeAgent"
 
 
 def _run(task: int, agent_cls, seconds: float, seed: int = 0):
     episode = Episode(Scenario(task=task, seed=seed), lambda b, tb: wire_system(
-        agent_cls(priors=tb.scene.priors))(b, tb))
+        agent_cls(priors=tb.scene.priors, **task_entry(task).agent_params))(b, tb))
     simulator, testbed, ctx = episode.simulator, episode.testbed, episode.tb_context
     simulator.Initialize()
     z_max = -np.inf

@@ -21,13 +21,15 @@ from pr2_drake.scenario import Scenario
 def _reference_state(scenario: Scenario, t: float) -> np.ndarray:
     """The plant state at ``t`` of the scenario's default (System) agent, advanced as
     ``run`` advances it, with no recorder in the diagram."""
-    from pr2_drake.agents import DEFAULT_AGENTS, instantiate_agent, load_agent_class
-    from pr2_drake.episode import CHECK_EVERY, Episode, wire_system
+    from pr2_drake.agents import instantiate_agent, load_agent_class
+    from pr2_drake.drive import CHECK_EVERY
+    from pr2_drake.episode import Episode, wire_system
+    from pr2_drake.run import agent_params, agent_spec
 
     def wire(builder, testbed):
-        agent = instantiate_agent(load_agent_class(DEFAULT_AGENTS[scenario.task]),
+        agent = instantiate_agent(load_agent_class(agent_spec(scenario)),
                                   priors=dict(testbed.scene.priors), task=scenario.task,
-                                  seed=scenario.seed)
+                                  seed=scenario.seed, **agent_params(scenario))
         return wire_system(agent)(builder, testbed)
 
     episode = Episode(scenario, wire)

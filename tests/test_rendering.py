@@ -96,7 +96,7 @@ def test_high_quality_overview_has_no_black_slabs(task):
 def test_head_camera_video_has_a_frame_per_camera_sample(tmp_path):
     """``--record-camera``: one frame per camera sample (0.5 s at 10 fps: 5 frames), at the
     camera's size and rate, colour | depth side by side with ``camera_depth``."""
-    from pr2_drake.episode import run_episode
+    from pr2_drake.run import run_episode
 
     cam = CameraSettings(enabled=True, width=64, height=48, fps=10.0, quality="low")
     for depth, width in ((False, 64), (True, 128)):

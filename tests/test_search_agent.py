@@ -10,11 +10,13 @@ import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
 
-from pr2_drake.agents.search.agent import (
-    ObjectSearchSequencer,
-    SearchAgentParams,
-    Stage,
+from pr2_drake.agents.search.memory import SearchAgentParams, Stage
+from pr2_drake.agents.search.sequencer import ObjectSearchSequencer
+from pr2_drake.agents.search.tables import (
+    Table,
     best_side,
+    in_heading,
+    out_from_under,
     search_order,
     tables_from_scene,
 )
@@ -102,16 +104,16 @@ def test_stages_walk_look_and_approach_the_detected_object():
     seq.GetInputPort("body_state").FixValue(ctx, body_state(2.0, 2.5 - 0.55, math.pi / 2))
     sim = Simulator(seq, ctx)
     sim.AdvanceTo(0.05)
-    assert seq.stage == Stage.LOOK and seq.place == "desk"
+    assert seq.memory(ctx).stage == Stage.LOOK and seq.memory(ctx).place == "desk"
     sim.AdvanceTo(1.0)
-    assert det.calls == 1 and seq.stage == Stage.APPROACH
-    assert np.allclose(seq.p_WO, p_WO)
+    assert det.calls == 1 and seq.memory(ctx).stage == Stage.APPROACH
+    assert np.allclose(seq.memory(ctx).p_WO, p_WO)
     # The pick pose: facing the desk (+y), before its south edge, in line with the object.
-    x, y, yaw = seq.goal
+    x, y, yaw = seq.memory(ctx).goal
     assert yaw == pytest.approx(math.pi / 2)
     assert y == pytest.approx(2.5 - seq.p.pick_standoff)
     assert abs(x - p_WO[0]) <= seq.p.hand_lateral + 1e-9
-    assert seq.hand == 1  # object to the robot's right: the right hand
+    assert seq.memory(ctx).hand == 1  # object to the robot's right: the right hand
     vx, vy, _ = seq.GetOutputPort("velocity_command").Eval(ctx)
     assert vx > 0 and vy < 0  # steps forward and to the right
 
@@ -122,18 +124,19 @@ def test_nothing_found_moves_on_to_the_next_table():
     seq.GetInputPort("body_state").FixValue(ctx, body_state(2.0, 1.95, math.pi / 2))
     sim = Simulator(seq, ctx)
     sim.AdvanceTo(1.0)
-    assert seq.stage == Stage.LOOK
+    assert seq.memory(ctx).stage == Stage.LOOK
     cmd = seq.GetOutputPort("velocity_command").Eval(ctx)
     assert det.calls == 2 and cmd[2] > 0  # two frames, then turns to the next heading
     # Never turning (the body state is fixed), it keeps asking to turn; a detection far from
     # the searched table is ignored.
     det.p_WO = np.array([-2.0, 2.6, 0.55])  # on the play table
-    seq.look_k = len(seq.p.look_yaws_deg) - 1
-    seq.t_still = -1.0
+    m = seq.mutable_memory(ctx)
+    m.look_k = len(seq.p.look_yaws_deg) - 1
+    m.t_still = -1.0
     seq.GetInputPort("body_state").FixValue(ctx, body_state(2.0, 1.95, math.pi / 2 - 0.52))
     sim.AdvanceTo(3.0)
-    assert seq.place != "desk" and seq.stage == Stage.NAVIGATE  # on to the next table
-    assert seq.path is not None and len(seq.path) >= 2
+    assert seq.memory(ctx).place != "desk" and seq.memory(ctx).stage == Stage.NAVIGATE  # on to the next table
+    assert seq.memory(ctx).path is not None and len(seq.memory(ctx).path) >= 2
 
 
 def test_unreadable_sentence_ends_with_the_parsers_message():
@@ -173,9 +176,10 @@ def test_closed_loop_pick_on_seed_0_from_the_desk():
     status = ep.advance_to(12.5)
     items = [i.item for i in status.items]
     seq = agent.GetSubsystemByName("sequencer")
-    assert "pick_target" in items, seq.log
+    m = seq.memory(seq.GetMyContextFromRoot(ep.context))
+    assert "pick_target" in items, m.log
     true = ep.testbed.scene.data["initial_poses"]["book"].translation()
-    assert np.linalg.norm(seq.p_WO - true) < 0.05  # found by the camera, not told
+    assert np.linalg.norm(m.p_WO - true) < 0.05  # found by the camera, not told
 
 
 def test_object_on_the_far_half_is_picked_from_the_other_side():
@@ -184,10 +188,10 @@ def test_object_on_the_far_half_is_picked_from_the_other_side():
     seq.GetInputPort("body_state").FixValue(ctx, body_state(2.0, 1.95, math.pi / 2))
     sim = Simulator(seq, ctx)
     sim.AdvanceTo(1.0)
-    assert seq.stage == Stage.NAVIGATE and seq.nav_then == Stage.APPROACH
-    x, y, yaw = seq.pick_goal
+    assert seq.memory(ctx).stage == Stage.NAVIGATE and seq.memory(ctx).nav_then == Stage.APPROACH
+    x, y, yaw = seq.memory(ctx).pick_goal
     assert y == pytest.approx(3.1 + seq.p.pick_standoff) and yaw == pytest.approx(-math.pi / 2)
-    assert np.linalg.norm(seq.path[-1] - [x, 3.1 + seq.p.stage_distance]) < 0.1
+    assert np.linalg.norm(seq.memory(ctx).path[-1] - [x, 3.1 + seq.p.stage_distance]) < 0.1
 
 
 def test_approach_stopped_short_by_the_table_settles_after_a_timeout():
@@ -195,13 +199,13 @@ def test_approach_stopped_short_by_the_table_settles_after_a_timeout():
     seq.GetInputPort("body_state").FixValue(ctx, body_state(2.0, 1.95, math.pi / 2))
     sim = Simulator(seq, ctx)
     sim.AdvanceTo(1.0)
-    assert seq.stage == Stage.APPROACH
-    x, y, yaw = seq.goal
+    assert seq.memory(ctx).stage == Stage.APPROACH
+    x, y, yaw = seq.memory(ctx).goal
     seq.GetInputPort("body_state").FixValue(ctx, body_state(x, y - 0.07, yaw))  # 7 cm short
     sim.AdvanceTo(1.0 + seq.p.approach_timeout - 0.5)
-    assert seq.stage == Stage.APPROACH
+    assert seq.memory(ctx).stage == Stage.APPROACH
     sim.AdvanceTo(1.0 + seq.p.approach_timeout + 0.5)
-    assert seq.stage in (Stage.SETTLE, Stage.REACH)
+    assert seq.memory(ctx).stage in (Stage.SETTLE, Stage.REACH)
 
 
 def test_object_models_load_from_any_working_folder(tmp_path, monkeypatch):
@@ -218,11 +222,12 @@ def test_object_models_load_from_any_working_folder(tmp_path, monkeypatch):
 def test_the_object_is_placed_with_the_arm_as_at_the_pick():
     seq, ctx = sequencer()
     tab = seq.tables["coffee_table"]
-    seq.side = np.array([0.0, 1.0])  # approached from its +y side (the sofa is at -y)
-    seq.r_pick = np.array([0.35, -0.18, 0.05])  # hand at the pick, heading frame
-    seq.o_pick = np.array([0.45, -0.25, 0.02])  # the object it held
-    seq.hand_over_top = 0.09
-    x, y, yaw = seq._place_pose(tab)
+    m = seq.mutable_memory(ctx)
+    m.side = np.array([0.0, 1.0])  # approached from its +y side (the sofa is at -y)
+    m.r_pick = np.array([0.35, -0.18, 0.05])  # hand at the pick, heading frame
+    m.o_pick = np.array([0.45, -0.25, 0.02])  # the object it held
+    m.hand_over_top = 0.09
+    x, y, yaw = seq._place_pose(m, tab)
     assert yaw == pytest.approx(-math.pi / 2)  # facing the table
     c, s = math.cos(yaw), math.sin(yaw)
     p_obj = np.array([x + c * 0.45 + s * 0.25, y + s * 0.45 - c * 0.25])
@@ -230,21 +235,20 @@ def test_the_object_is_placed_with_the_arm_as_at_the_pick():
     assert p_obj[1] == pytest.approx(near_edge - seq.p.place_inset)  # inset from the edge
     assert p_obj[0] == pytest.approx(tab.center[0])  # on the centre line
     p_WB = np.array([x, y, 0.57])
-    drop = seq._drop_point(p_WB, yaw, tab)
-    assert np.allclose(seq._in_heading(p_WB, yaw, drop)[:2], [0.35, -0.18])  # arm as before
+    drop = seq._drop_point(m, p_WB, yaw, tab)
+    assert np.allclose(in_heading(p_WB, yaw, drop)[:2], [0.35, -0.18])  # arm as before
     assert drop[2] == pytest.approx(tab.height + 0.09 + seq.p.place_clearance)
     # Set down upright: while placing, the hand target carries the object's vertical in the
     # hand frame (the QP keeps it vertical); while walking it does not.
-    seq.hand, seq.targets, seq.up_H = 1, [None, drop], np.array([0.0, 0.6, 0.8])
+    m.hand, m.targets, m.up_H = 1, [None, drop], np.array([0.0, 0.6, 0.8])
     for stage, size in ((Stage.PLACE, 6), (Stage.RELEASE, 6), (Stage.CARRY, 3)):
-        seq.stage = stage
-        ctx.get_mutable_discrete_state(0).SetAtIndex(0, float(stage))  # as an update does
+        seq.mutable_memory(ctx).stage = stage  # (the output sees the change)
         target = seq.GetOutputPort("hand_targets").Eval(ctx)[1]
         assert target.size == size and np.allclose(target[:3], drop)
     # A short reach would put the base against the table: it keeps place_standoff, and the
     # object lands deeper.
-    seq.o_pick = np.array([0.2, -0.2, 0.0])
-    _, y, _ = seq._place_pose(tab)
+    m.o_pick = np.array([0.2, -0.2, 0.0])
+    _, y, _ = seq._place_pose(m, tab)
     assert y - near_edge == pytest.approx(seq.p.place_standoff)
 
 
@@ -255,46 +259,42 @@ def test_an_object_out_of_reach_from_the_look_side_is_picked_from_the_nearest_fr
     seq, ctx = sequencer(detector=StubDetector(p_WO))
     seq.GetInputPort("body_state").FixValue(ctx, body_state(2.0, 1.95, math.pi / 2))
     Simulator(seq, ctx).AdvanceTo(1.0)
-    assert seq.stage == Stage.NAVIGATE and seq.nav_then == Stage.APPROACH
+    assert seq.memory(ctx).stage == Stage.NAVIGATE and seq.memory(ctx).nav_then == Stage.APPROACH
     tab = seq.tables["desk"]
-    depth = tab.side_frame(seq.side)[0] - float((p_WO[:2] - tab.center) @ seq.side)
+    depth = tab.side_frame(seq.memory(ctx).side)[0] - float((p_WO[:2] - tab.center) @ seq.memory(ctx).side)
     assert depth <= 0.15 + 1e-9  # the west end (0.10) or the north side (0.15), not 0.45
-    x, y, yaw = seq.pick_goal
-    assert np.allclose([math.cos(yaw), math.sin(yaw)], -seq.side)  # facing the table
+    x, y, yaw = seq.memory(ctx).pick_goal
+    assert np.allclose([math.cos(yaw), math.sin(yaw)], -seq.memory(ctx).side)  # facing the table
     grid = seq.grid.inflated(seq.nav.robot_radius)
-    assert grid.free(seq.path[-1])
+    assert grid.free(seq.memory(ctx).path[-1])
 
 
 def test_the_grasp_point_keeps_away_from_other_objects_seen():
     # pick latches the object nearest the hand: a bottle standing between the target and the
     # shoulder would be picked instead, so the hand comes from another side.
-    seq, _ = sequencer()
-    seq.hand = 1
-    seq.p_WO = np.array([1.906, -2.35, 0.596])
+    seq, ctx = sequencer()
+    m = seq.mutable_memory(ctx)
+    m.hand = 1
+    m.p_WO = np.array([1.906, -2.35, 0.596])
     shoulder = np.array([1.85, -1.98, 0.902])
     seq.model.shoulder_position = lambda side: shoulder
-    plain = seq._grasp_point(seq.p.grasp_offset)  # nothing else seen: towards the shoulder
-    to_shoulder = (shoulder - seq.p_WO) / np.linalg.norm(shoulder - seq.p_WO)
-    assert np.allclose(plain, seq.p_WO + seq.p.grasp_offset * to_shoulder)
-    seq.others = [np.array([1.803, -2.304, 0.665])]  # a bottle on that side (seed 19)
-    g = seq._grasp_point(seq.p.grasp_offset)
-    assert np.linalg.norm(g - seq.p_WO) == pytest.approx(seq.p.grasp_offset)
-    assert np.linalg.norm(g - seq.others[0]) >= seq.p.grasp_offset + seq.p.grasp_margin
-    assert np.linalg.norm(plain - seq.others[0]) < seq.p.grasp_offset  # would have taken it
+    plain = seq._grasp_point(m, seq.p.grasp_offset)  # nothing else seen: towards the shoulder
+    to_shoulder = (shoulder - m.p_WO) / np.linalg.norm(shoulder - m.p_WO)
+    assert np.allclose(plain, m.p_WO + seq.p.grasp_offset * to_shoulder)
+    m.others = [np.array([1.803, -2.304, 0.665])]  # a bottle on that side (seed 19)
+    g = seq._grasp_point(m, seq.p.grasp_offset)
+    assert np.linalg.norm(g - m.p_WO) == pytest.approx(seq.p.grasp_offset)
+    assert np.linalg.norm(g - m.others[0]) >= seq.p.grasp_offset + seq.p.grasp_margin
+    assert np.linalg.norm(plain - m.others[0]) < seq.p.grasp_offset  # would have taken it
     assert np.linalg.norm(g - shoulder) <= seq.p.reach
 
 
 def test_a_hand_hanging_under_a_table_edge_backs_out_before_it_rises():
-    from types import SimpleNamespace
-
-    from pr2_drake.agents.search.agent import Table
-
     tab = Table("desk", np.array([0.0, 0.0]), np.array([1.0, 0.6]), 0.60)  # edge at y = -0.3
-    seq = SimpleNamespace(p=SearchAgentParams(edge_clearance=0.07))
+    margin = SearchAgentParams(edge_clearance=0.07).edge_clearance
     facing = np.array([0.0, 1.0])  # the robot at y < -0.3, facing the desk
-    out = ObjectSearchSequencer._out_from_under
-    back = out(seq, np.array([0.1, -0.27, 0.50]), facing, tab)  # 3 cm under the top
+    back = out_from_under(np.array([0.1, -0.27, 0.50]), facing, tab, margin)  # 3 cm under
     assert back is not None and back[2] == 0.50 and back[0] == 0.1  # straight back, same height
     assert not tab.contains(back, 0.07) and back[1] > -0.3 - 0.07 - 0.02
-    assert out(seq, np.array([0.1, -0.45, 0.50]), facing, tab) is None  # hangs clear
-    assert out(seq, np.array([0.1, -0.27, 0.65]), facing, tab) is None  # above the top
+    assert out_from_under(np.array([0.1, -0.45, 0.50]), facing, tab, margin) is None  # clear
+    assert out_from_under(np.array([0.1, -0.27, 0.65]), facing, tab, margin) is None  # above

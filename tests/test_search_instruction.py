@@ -13,6 +13,7 @@ from pr2_drake.agents.search.instruction import (
     UnknownObjectError,
     Vocabulary,
 )
+from pr2_drake.bench.parser import PARAPHRASES  # (sentence, target, source furniture)
 from pr2_drake.tasks import get_task
 
 SCENE = get_task(6).spec.scene
@@ -57,65 +58,6 @@ def test_original_style_names(sentence, target):
     assert (got.target, got.destination) == (target, "coffee_table")
 
 
-# (sentence, expected target, expected source furniture or None)
-PARAPHRASES = [
-    ("Put the mug from the kitchen table on the coffee table.", "cup", "kitchen_table"),
-    ("Bring me the cup from the kitchen and put it on the coffee table", "cup", "kitchen_table"),
-    ("Take the coffee mug off the kitchen table and set it on the coffee table.", "cup",
-     "kitchen_table"),
-    ("PUT THE TEDDY ON THE COFFEE TABLE!", "teddy_bear", None),
-    ("Could you fetch the bear from the playroom and leave it on the coffee table?",
-     "teddy_bear", "play_table"),
-    ("go to the play room, grab the teddy bear, then place it onto the coffee table",
-     "teddy_bear", "play_table"),
-    ("The teddy bear that is on the table in the playroom should go on the coffee table.",
-     "teddy_bear", "play_table"),
-    ("Onto the coffee table, please, the cube from the desk.", "cube", "desk"),
-    ("From the study, bring the red cube to the coffee table in the living room.", "cube",
-     "desk"),
-    ("move the block from the study desk to the living room's coffee table", "cube", "desk"),
-    ("In the kitchen, find the bottle and bring it to the coffee table.", "bottle",
-     "kitchen_table"),
-    ("Carry the water bottle on the kitchen table over to the coffee table", "bottle",
-     "kitchen_table"),
-    ("bring the bowl to the coffee table", "bowl", None),
-    ("Please place the orange bowl, which is on the kitchen table, on the coffee table.",
-     "bowl", "kitchen_table"),
-    ("Put the apple that's lying on the dining table onto the coffee table", "apple",
-     "kitchen_table"),
-    ("get the red apple out of the kitchen and put it on the coffee table", "apple",
-     "kitchen_table"),
-    ("Deliver the toy car from the playroom table to the coffee table.", "toy_car",
-     "play_table"),
-    ("pick up the car in the playroom and drop it on the coffee table", "toy_car",
-     "play_table"),
-    ("Search the playroom for the toy-car; then put it on the coffee table", "toy_car",
-     "play_table"),
-    ("Fetch the book from the desk and put it on the coffee table in the lounge.", "book",
-     "desk"),
-    ("the book in the study goes onto the coffee table", "book", "desk"),
-    ("Locate the notebook on the writing desk, and place it on the coffee table.", "book",
-     "desk"),
-    ("put the pencil case from the study on the coffee table", "pencil_box", "desk"),
-    ("Go to the office, pick up the pencil box, and put it on the coffee table.",
-     "pencil_box", "desk"),
-    ("Bring the pencil box sitting on the desk to the living room", "pencil_box", "desk"),
-    ("Take the cup to the living room.", "cup", None),
-    ("Bring the teddy bear to the living room and put it on the table there", "teddy_bear",
-     None),
-    ("put the teddy bear on the coffee table , it is in the playroom", "teddy_bear",
-     "play_table"),
-    ("Find the cube on the desk in the study and put it onto the coffeetable", "cube", "desk"),
-    ("Please   put   the   Cup   on   the   Coffee   Table", "cup", None),
-    ("Could you please move the stuffed bear from the nursery to the coffee table?",
-     "teddy_bear", "play_table"),
-    ("grab the bottle from the kitchen table; put it on the living room table", "bottle",
-     "kitchen_table"),
-    ("Put the apple on the coffee table. The apple is on the kitchen table.", "apple",
-     "kitchen_table"),
-    ("place the toy car, found on the table in the playroom, on the coffee table",
-     "toy_car", "play_table"),
-]
 
 
 @pytest.mark.parametrize("sentence,target,source", PARAPHRASES)

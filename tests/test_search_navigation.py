@@ -100,7 +100,7 @@ def test_walking_robot_follows_a_path_with_a_turn():
     follower = PathFollower(path=path)
 
     def wire(b: DiagramBuilder, tb):
-        walker = b.AddSystem(WalkingController(WalkingParams.load("controllers/walking.yaml")))
+        walker = b.AddSystem(WalkingController(WalkingParams.load("params/controllers/walking.yaml")))
         arms = b.AddSystem(ArmPosture())
         b.AddSystem(follower)
         for n in ("joint_state", "body_state"):

@@ -10,7 +10,7 @@ from pr2_drake.agents.search.perception import (
     ObjectDetector,
     object_models_from_priors,
 )
-from pr2_drake.bench.perception import ViewRig
+from pr2_drake.bench.rigs import ViewRig
 
 
 @pytest.fixture(scope="module")

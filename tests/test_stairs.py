@@ -1,5 +1,5 @@
 """Footholds with height: the planar-patch terrain, footholds on treads, the swing over an edge,
-and one 0.10 m step climbed in closed loop (pr2_drake.controllers.{terrain_model,tread_steps},
+and one 0.10 m step climbed in closed loop (pr2_drake.controllers.planning.{terrain,tread_steps},
 pr2_drake.bench.stairs)."""
 
 from __future__ import annotations
@@ -7,15 +7,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pr2_drake.bench.stairs import LANE_GAIN, StairsSim
-from pr2_drake.controllers.swing import SwingTrajectory
-from pr2_drake.controllers.terrain_model import (
+from pr2_drake.bench.rigs import StairsSim
+from pr2_drake.bench.stairs import LANE_GAIN
+from pr2_drake.controllers.planning.swing import SwingTrajectory
+from pr2_drake.controllers.planning.terrain import (
     PatchTerrain,
     PlanarPatch,
     stairs_from_priors,
     stairs_terrain,
 )
-from pr2_drake.controllers.tread_steps import (
+from pr2_drake.controllers.planning.tread_steps import (
     BESIDE,
     TreadFootstepPlanner,
     TreadPlannerParams,
@@ -23,7 +24,7 @@ from pr2_drake.controllers.tread_steps import (
 from pr2_drake.controllers.walking_params import WalkingParams
 from tests._locomotion_sim import scene_geometry
 
-PARAMS = WalkingParams.load().with_overrides("controllers/walking_stairs.yaml")
+PARAMS = WalkingParams.load().with_overrides("params/controllers/walking_stairs.yaml")
 HALF_FOOT = 0.075  # [m] sole centre to heel / toe
 
 

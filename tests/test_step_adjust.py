@@ -1,4 +1,4 @@
-"""Step adjustment (pr2_drake.controllers.step_adjust): where and when a swing sole lands, from
+"""Step adjustment (pr2_drake.controllers.planning.step_adjust): where and when a swing sole lands, from
 the capture point, and a push while walking recovered in closed loop."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from pr2_drake.bench.walking import push_once
-from pr2_drake.controllers.step_adjust import choose_step, reach_box
+from pr2_drake.controllers.planning.step_adjust import choose_step, reach_box
 from pr2_drake.controllers.walking_params import WalkingParams
 
 GAIT = WalkingParams.load().gait

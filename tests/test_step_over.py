@@ -1,15 +1,15 @@
 """Stepping over a low obstacle: footholds off it, a high swing over it, and the closed loop
-over a 0.06 m box (pr2_drake.controllers.step_over)."""
+over a 0.06 m box (pr2_drake.controllers.planning.step_over)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from pr2_drake.bench.stairs import StairsSim
-from pr2_drake.controllers.footsteps import VelocityFootstepPlanner
-from pr2_drake.controllers.step_over import Obstacle, StepOverFootstepPlanner
-from pr2_drake.controllers.terrain_model import PatchTerrain
+from pr2_drake.bench.rigs import StairsSim
+from pr2_drake.controllers.planning.footsteps import VelocityFootstepPlanner
+from pr2_drake.controllers.planning.step_over import Obstacle, StepOverFootstepPlanner
+from pr2_drake.controllers.planning.terrain import PatchTerrain
 from pr2_drake.controllers.walking_params import WalkingParams
 
 PARAMS = WalkingParams.load()

@@ -70,7 +70,7 @@ def test_ground_height_is_the_stone_surface():
 def test_standing_in_start_region_earns_nothing():
     sim = TaskSim(1, seed=0)
     sim.advance_to(0.5)
-    ep = sim.episode()
+    ep = sim.verdict()
     assert ep.score == 0.0 and ep.items == [] and not ep.done
 
 
@@ -78,25 +78,25 @@ def test_task_region_without_half_road():
     sim = TaskSim(1, seed=0)
     sim.advance_to(0.1)
     sim.stand_at(1.2, 0.0, lift=0.03)
-    sim.advance(0.05)
+    sim.advance_by(0.05)
     assert sim.items() == ["task_region"]
-    assert sim.episode().score == 5.0
+    assert sim.verdict().score == 5.0
 
 
 def test_half_road_and_finish_complete_the_task():
     sim = TaskSim(1, seed=0)
     sim.advance_to(0.1)
     sim.stand_at(3.3, 0.0, lift=0.03)
-    sim.advance(0.05)
+    sim.advance_by(0.05)
     assert sim.items() == ["task_region", "half_road"]
     # Just outside the finish circle (0.45 m from its centre): no finish.
     gx, gy = SPEC.scene["finish"]["center"]
     sim.stand_at(gx - 0.45, gy)
-    sim.advance(0.05)
+    sim.advance_by(0.05)
     assert "finish" not in sim.items()
     sim.stand_at(gx - 0.3, gy)
-    sim.advance(0.05)
-    ep = sim.episode()
+    sim.advance_by(0.05)
+    ep = sim.verdict()
     assert [e.item for e in ep.items] == ["task_region", "half_road", "finish"]
     assert ep.score == 15.0 and ep.done and ep.success and ep.termination == "completed"
 
@@ -105,7 +105,7 @@ def test_beside_the_road_past_halfway_earns_nothing():
     # Inside the arena but off the road (|y| > width / 2): neither task region nor half road.
     sim = TaskSim(1, seed=0, start=StartPose(3.5, 0.8, 0.0))
     sim.advance_to(0.1)
-    ep = sim.episode()
+    ep = sim.verdict()
     assert ep.items == [] and not ep.done
 
 
@@ -114,8 +114,8 @@ def test_falling_ends_the_episode_and_keeps_points():
     sim.advance_to(0.1)
     sim.stand_at(1.5, 0.0, lift=0.03)
     sim.controller.limp = True
-    sim.advance(2.0)
-    ep = sim.episode()
+    sim.advance_by(2.0)
+    ep = sim.verdict()
     assert ep.done and ep.termination == "fell" and not ep.success
     assert ep.score == 5.0 and [e.item for e in ep.items] == ["task_region"]
     assert sim.base_position()[2] < SPEC.fall_height + 0.03
@@ -125,6 +125,6 @@ def test_leaving_the_arena_ends_the_episode():
     sim = TaskSim(1, seed=0)
     sim.advance_to(0.1)
     sim.stand_at(0.0, 1.0)
-    sim.advance(0.05)
-    ep = sim.episode()
+    sim.advance_by(0.05)
+    ep = sim.verdict()
     assert ep.done and ep.termination == "left_region" and ep.score == 0.0

@@ -73,7 +73,7 @@ def test_bar_moves_as_prescribed_and_round_its_end_earns_nothing():
     fb = sim.feedback()
     assert fb["bar_position"][1] == pytest.approx(BAR["start_y"] + BAR["travel"], abs=0.01)
     assert np.linalg.norm(fb["bar_velocity"]) < 0.01
-    ep = sim.episode()
+    ep = sim.verdict()
     assert ep.items == [] and ep.score == 0.0 and not ep.done
     assert ep.memo["side"] == {"left": -1, "right": -1}  # the bar is now past both feet
 
@@ -81,7 +81,7 @@ def test_bar_moves_as_prescribed_and_round_its_end_earns_nothing():
 def test_bar_hits_a_standing_robot_once_and_costs_points():
     sim = TaskSim(3, seed=0, start=StartPose(0.0, 0.0, 0.0))
     sim.advance_to(STOP + 0.3)
-    ep = sim.episode()
+    ep = sim.verdict()
     contacts = [e for e in ep.items if e.item == "bar_contact"]
     assert len(contacts) == 1 and contacts[0].points == -5
     assert contacts[0].time > BAR["start_time"]
@@ -94,7 +94,7 @@ def _hover(sim, t_end, sole_height):
     X = sim.standing_pose(0.0, 0.0, lift=sole_height)
     while sim.time < t_end - 1e-9:
         sim.teleport(X)
-        sim.advance(0.01)
+        sim.advance_by(0.01)
 
 
 def test_jump_over_scores_15_and_completes():
@@ -105,7 +105,7 @@ def test_jump_over_scores_15_and_completes():
     sim.advance_to(3.055 + 0.3)
     assert sim.items() == []  # not yet: it must stay up for settle_time
     sim.advance_to(3.055 + 0.6)
-    ep = sim.episode()
+    ep = sim.verdict()
     assert [e.item for e in ep.items] == ["jump_over"]
     assert ep.score == 15.0 and ep.done and ep.success and ep.termination == "completed"
 
@@ -117,7 +117,7 @@ def test_jump_touching_the_bar_twice_loses_ten():
     _hover(sim, 3.055, BAR["clearance"] + BAR["size"][2] - 0.005)
     sim.stand_at(0.0, 0.0, lift=0.002)
     sim.advance_to(3.7)
-    ep = sim.episode()
+    ep = sim.verdict()
     assert [e.item for e in ep.items] == ["bar_contact", "bar_contact", "jump_over"]
     assert ep.score == 5.0
 
@@ -129,7 +129,7 @@ def test_jump_then_fall_earns_nothing():
     sim.stand_at(0.0, 0.0, lift=0.002)
     sim.controller.limp = True
     sim.advance_to(4.0)
-    ep = sim.episode()
+    ep = sim.verdict()
     assert ep.termination == "fell" and ep.items == [] and ep.score == 0.0
 
 
@@ -145,10 +145,10 @@ def test_step_over_one_foot_at_a_time_scores_10():
         bar_y = sim.feedback()["bar_position"][1]
         sim.teleport(roll_about_sole(X0, p_left, -0.45) if bar_y < 0.0
                      else roll_about_sole(X0, p_right, 0.45))
-        sim.advance(0.01)
+        sim.advance_by(0.01)
     sim.teleport(X0)
     sim.advance_to(STOP + 0.1)
-    ep = sim.episode()
+    ep = sim.verdict()
     assert [e.item for e in ep.items] == ["step_over"]
     assert ep.score == 10.0 and not ep.earned("jump_over")
     assert ep.done and ep.termination == "completed"  # bar stopped: nothing more to gain
@@ -159,7 +159,7 @@ def test_getting_behind_the_bar_before_it_moves_earns_nothing():
     sim.advance_to(0.5)
     sim.stand_at(0.0, -1.1)  # behind the resting bar (y = -0.825): it then moves away
     sim.advance_to(STOP + 0.6)
-    ep = sim.episode()
+    ep = sim.verdict()
     assert ep.items == [] and not ep.done
 
 
@@ -168,5 +168,5 @@ def test_falling_ends_the_episode():
     sim.advance_to(0.1)
     sim.controller.limp = True
     sim.advance_to(1.5)
-    ep = sim.episode()
+    ep = sim.verdict()
     assert ep.termination == "fell" and ep.score == 0.0

@@ -57,7 +57,7 @@ def test_slope_surface_is_7_degrees_and_matches_ground_height():
 def test_standing_in_start_region_earns_nothing():
     sim = TaskSim(4, seed=0)
     sim.advance_to(0.5)
-    ep = sim.episode()
+    ep = sim.verdict()
     assert ep.items == [] and not ep.done
 
 
@@ -65,15 +65,15 @@ def test_task_region_then_finish_completes():
     sim = TaskSim(4, seed=0)
     sim.advance_to(0.1)
     sim.stand_at(2.0, 0.0, lift=0.03)
-    sim.advance(0.05)
-    assert sim.items() == ["task_region"] and sim.episode().score == 5.0
+    sim.advance_by(0.05)
+    assert sim.items() == ["task_region"] and sim.verdict().score == 5.0
     gx, gy = SPEC.scene["finish"]["center"]
     sim.stand_at(gx + 0.45, gy)  # on the plateau, outside the 0.4 m circle
-    sim.advance(0.05)
+    sim.advance_by(0.05)
     assert sim.items() == ["task_region"]
     sim.stand_at(gx + 0.3, gy)
-    sim.advance(0.05)
-    ep = sim.episode()
+    sim.advance_by(0.05)
+    ep = sim.verdict()
     assert [e.item for e in ep.items] == ["task_region", "finish"]
     assert ep.score == 10.0 and ep.done and ep.success and ep.termination == "completed"
 
@@ -82,8 +82,8 @@ def test_finish_alone_is_not_completion():
     sim = TaskSim(4, seed=0)
     sim.advance_to(0.1)
     sim.stand_at(*SPEC.scene["finish"]["center"])
-    sim.advance(0.05)
-    ep = sim.episode()
+    sim.advance_by(0.05)
+    ep = sim.verdict()
     assert [e.item for e in ep.items] == ["finish"] and ep.score == 5.0 and not ep.done
 
 
@@ -92,8 +92,8 @@ def test_falling_on_the_slope_ends_the_episode_and_keeps_points():
     sim.advance_to(0.1)
     sim.stand_at(1.6, 0.0, lift=0.03)
     sim.controller.limp = True
-    sim.advance(2.0)
-    ep = sim.episode()
+    sim.advance_by(2.0)
+    ep = sim.verdict()
     assert ep.termination == "fell" and not ep.success
     assert [e.item for e in ep.items] == ["task_region"] and ep.score == 5.0
 
@@ -102,6 +102,6 @@ def test_walking_off_the_side_ends_the_episode():
     sim = TaskSim(4, seed=0)
     sim.advance_to(0.1)
     sim.stand_at(4.0, 1.1)  # beside the plateau
-    sim.advance(0.05)
-    ep = sim.episode()
+    sim.advance_by(0.05)
+    ep = sim.verdict()
     assert ep.termination == "left_region" and ep.score == 0.0

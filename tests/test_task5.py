@@ -66,13 +66,13 @@ def _stand(x, y=0.0, settle=0.05):
     sim = TaskSim(5, seed=0)
     sim.advance_to(0.105)  # between referee ticks (see TaskSim.teleport)
     sim.stand_at(x, y, lift=0.002)
-    sim.advance(settle)
+    sim.advance_by(settle)
     return sim
 
 
 def test_standing_before_the_steps_earns_nothing():
     sim = _stand(STEPS["start_x"] - 0.25, settle=0.5)
-    ep = sim.episode()
+    ep = sim.verdict()
     assert ep.items == [] and not ep.done
 
 
@@ -81,8 +81,8 @@ def test_on_the_first_and_second_step_but_not_over():
     sim = _stand(x0 + 0.2, settle=0.2)  # soles span x0 + [0.18, 0.31]: on step 1
     assert sim.items() == ["onto_step"]
     sim.stand_at(x0 + d + 0.2, 0.0, lift=0.002)  # step 2
-    sim.advance(0.2)
-    assert sim.items() == ["onto_step"] and sim.episode().score == 5.0
+    sim.advance_by(0.2)
+    assert sim.items() == ["onto_step"] and sim.verdict().score == 5.0
 
 
 def test_feet_above_a_step_without_contact_earn_nothing():
@@ -91,14 +91,14 @@ def test_feet_above_a_step_without_contact_earn_nothing():
     X = sim.standing_pose(STEPS["start_x"] + 0.2, 0.0, lift=0.05)
     for _ in range(20):
         sim.teleport(X)
-        sim.advance(0.01)
+        sim.advance_by(0.01)
     assert sim.items() == []
 
 
 def test_on_the_floor_after_the_steps():
     sim = _stand(STEPS["start_x"] + STEPS["count"] * STEPS["depth"] + 0.4, settle=0.1)
     assert sim.items() == ["onto_step", "over_steps"]
-    assert sim.episode().score == 10.0
+    assert sim.verdict().score == 10.0
 
 
 def _button_front():
@@ -130,14 +130,14 @@ def _hold(sim, X_WB, duration):
     t_end = sim.time + duration
     while sim.time < t_end - 1e-9:
         sim.teleport(X_WB, joints=False)
-        sim.advance(0.01)
+        sim.advance_by(0.01)
 
 
 def test_pressing_with_the_hand_earns_both_button_items():
     sim = _stand(2.3)
     t0 = sim.time
     _press_with_right_hand(sim, hold=PRESS + 0.1)
-    ep = sim.episode()
+    ep = sim.verdict()
     assert ep.earned("touch_button") and ep.earned("touch_button_arm")
     assert ep.score == 20.0 and ep.done and ep.success and ep.termination == "completed"
     press = [e.time for e in ep.items if e.item == "touch_button_arm"][0]
@@ -148,9 +148,9 @@ def test_a_touch_shorter_than_the_hold_time_earns_nothing():
     sim = _stand(2.3)
     items_before = sim.items()
     X = _press_with_right_hand(sim, hold=PRESS - 0.08)
-    assert sim.episode().memo["arm_touch_since"] is not None  # the hand is on the button
+    assert sim.verdict().memo["arm_touch_since"] is not None  # the hand is on the button
     sim.teleport(X.__class__(X.rotation(), X.translation() - [0.2, 0.0, 0.0]), joints=False)
-    sim.advance(0.3)
+    sim.advance_by(0.3)
     assert sim.items() == items_before  # only the step items, no button items
 
 
@@ -159,7 +159,7 @@ def test_torso_on_the_button_is_a_touch_but_not_an_arm_touch():
     sim = _stand(2.3)
     # base_link's torso box front face is 0.08 m ahead of the base; push it 3 mm in.
     _hold(sim, sim.standing_pose(button[0] - 0.08 + 0.003, button[1], lift=0.002), PRESS + 0.1)
-    ep = sim.episode()
+    ep = sim.verdict()
     assert ep.earned("touch_button") and not ep.earned("touch_button_arm")
     assert ep.score == 15.0 and not ep.done
 
@@ -167,13 +167,13 @@ def test_torso_on_the_button_is_a_touch_but_not_an_arm_touch():
 def test_falling_on_a_step_ends_the_episode_and_keeps_points():
     sim = _stand(STEPS["start_x"] + 0.2)
     sim.controller.limp = True
-    sim.advance(2.0)
-    ep = sim.episode()
+    sim.advance_by(2.0)
+    ep = sim.verdict()
     assert ep.termination == "fell" and [e.item for e in ep.items] == ["onto_step"]
     assert ep.score == 5.0
 
 
 def test_walking_off_the_side_of_the_steps_ends_the_episode():
     sim = _stand(STEPS["start_x"] + 0.2, y=1.1)
-    ep = sim.episode()
+    ep = sim.verdict()
     assert ep.termination == "left_region"

@@ -10,16 +10,18 @@ import numpy as np
 import pytest
 from pydrake.multibody.plant import MultibodyPlant
 
-from pr2_drake.bench.walking import WalkingSim
-from pr2_drake.controllers.walking import WalkingController, obs_to_vectors
-from pr2_drake.controllers.walking_core import COMMAND_PORT, Phase, WalkingCore, check_command
+from pr2_drake.bench.rigs import WalkingSim
+from pr2_drake.controllers.walking import WalkingController
+from pr2_drake.observation import state_vectors
+from pr2_drake.controllers.planning.gait import Phase
+from pr2_drake.controllers.whole_body import COMMAND_PORT, WholeBodyController, check_command
 from pr2_drake.controllers.walking_params import WalkingParams
 from pr2_drake.ports import N_LEGS, P_WB, Q_ARMS, Q_LEGS, QUAT_WB, V_ARMS, V_LEGS, V_WB, W_WB
 from pr2_drake.robot.model import add_kuavo, default_joint_positions, standing_base_pose
 from pr2_drake.robot.params import load_robot_params
 
 
-def _standing_state(core: WalkingCore):
+def _standing_state(core: WholeBodyController):
     """Plant (q, v) of the robot standing in its default pose on flat ground."""
     plant = MultibodyPlant(0.0)
     robot = add_kuavo(plant)
@@ -35,7 +37,7 @@ def _standing_state(core: WalkingCore):
     return q, np.zeros(m.nv)
 
 
-def _check_qp_result(core: WalkingCore, q, v, tau) -> bool:
+def _check_qp_result(core: WholeBodyController, q, v, tau) -> bool:
     """Torques within the peak torque; if the QP solved, base rows of M vdot + h = J_c^T f
     hold and the forces are in the friction cone. Returns whether the QP solved."""
     effort = load_robot_params().effort_limits("legs")
@@ -69,7 +71,7 @@ def _check_qp_result(core: WalkingCore, q, v, tau) -> bool:
 def test_qp_standing_respects_limits_and_dynamics(solver):
     params = WalkingParams.load()
     params.qp.solver = solver
-    core = WalkingCore(params)
+    core = WholeBodyController(params)
     assert core.qp.use_daqp == (solver == "daqp")
     q, v = _standing_state(core)
     tau = core.update(0.0, q, v, [0.0, 0.0, 0.0])
@@ -80,7 +82,7 @@ def test_qp_standing_respects_limits_and_dynamics(solver):
 
 def test_qp_single_support_with_large_demands():
     """A frozen state far from the plan: demands saturate, constraints must still hold."""
-    core = WalkingCore()
+    core = WholeBodyController()
     q, v = _standing_state(core)
     v = v.copy()
     v[core.model.maps.v_base[3:]] = [0.4, -0.3, 0.0]  # the base moving fast sideways
@@ -99,7 +101,7 @@ def test_qp_single_support_with_large_demands():
 
 
 def test_qp_failure_falls_back_without_exception():
-    core = WalkingCore()
+    core = WholeBodyController()
     q, v = _standing_state(core)
     tau0 = core.update(0.0, q, v, [0.0, 0.0, 0.0]).copy()
     m = core.model
@@ -114,7 +116,7 @@ def test_qp_failure_falls_back_without_exception():
 def test_infeasible_qp_falls_back_to_decayed_torques():
     """An infeasible tick (a hard row 0 = 1): DAQP finds no solution, nor does the OSQP
     fallback; the tick returns the last torques, decayed, without raising."""
-    core = WalkingCore()
+    core = WholeBodyController()
     q, v = _standing_state(core)
     tau0 = core.update(0.0, q, v, [0.0, 0.0, 0.0]).copy()
     m = core.model
@@ -156,9 +158,9 @@ def test_bad_commands():
         check_command([np.nan, 0.0, 0.0])
     with pytest.raises(ValueError, match=COMMAND_PORT):
         check_command([0.1, 0.2])
-    core = WalkingCore()
+    core = WholeBodyController()
     lim = core.params.limits
-    # Out-of-range commands are clipped to the limits of controllers/walking.yaml.
+    # Out-of-range commands are clipped to the limits of params/controllers/walking.yaml.
     np.testing.assert_allclose(core.clip_command([5.0, -3.0, 9.0]),
                                [lim.vx_max, -lim.vy_max, lim.yaw_rate_max])
     np.testing.assert_allclose(core.clip_command([-5.0, 3.0, -9.0]),
@@ -186,7 +188,7 @@ def _obs_from_sim(sim: WalkingSim) -> dict:
 def test_in_process_command_matches_the_action_format():
     sim = WalkingSim()
     obs = _obs_from_sim(sim)
-    js, bs = obs_to_vectors(obs)
+    js, bs = state_vectors(obs)
     assert js.shape == (54,) and bs.shape == (13,)
     walker = WalkingController()
     legs = walker.command(obs, 0.0, 0.0, 0.0)

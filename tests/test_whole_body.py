@@ -9,13 +9,13 @@ import pytest
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-from pr2_drake.bench.walking import WalkingSim
-from pr2_drake.controllers.footsteps import FixedFootstepPlanner, FootstepPlanner
+from pr2_drake.bench.rigs import WalkingSim
+from pr2_drake.controllers.planning.footsteps import FixedFootstepPlanner, FootstepPlanner
 from pr2_drake.controllers.plan import WholeBodyPlan
-from pr2_drake.controllers.tasks import HandUprightTask, PostureTask, TaskCost
+from pr2_drake.controllers.tracking.objectives import HandUprightObjective, PostureObjective, ObjectiveCost
 from pr2_drake.controllers.walking_params import WalkingParams
-from pr2_drake.controllers.wb_model import WholeBodyModel
-from pr2_drake.controllers.wbqp import WholeBodyQp
+from pr2_drake.controllers.model import WholeBodyModel
+from pr2_drake.controllers.tracking.qp import WholeBodyQp
 from pr2_drake.controllers.whole_body import WholeBodyController, check_hand_targets
 from pr2_drake.ports import N_ARMS
 
@@ -39,12 +39,12 @@ def test_posture_task_alone_sets_the_joint_accelerations():
     v = np.zeros(m.nv)
     m.update(q, v)
     n = len(m.maps.v_joints)
-    task = PostureTask(m, q_nominal, np.full(n, 20.0), np.full(n, 4.0), np.ones(n))
+    task = PostureObjective(m, q_nominal, np.full(n, 20.0), np.full(n, 4.0), np.ones(n))
     plan = WholeBodyPlan()
     (J, a, w), = task.rows(m, plan)
     np.testing.assert_allclose(a, 20.0 * (q_nominal - q[m.maps.q_joints]))
     assert J.shape == (n, m.nv) and np.all(w == 1.0)
-    cost = TaskCost(m.nv)
+    cost = ObjectiveCost(m.nv)
     task.add_to(cost, m, plan)
     qp = WholeBodyQp(m.nv, m.maps.v_base, m.v_legs, m.effort[N_ARMS:], 2 * m.n_points,
                      params.qp, arm_v=m.v_arms, arm_effort=m.effort[:N_ARMS])
@@ -309,4 +309,4 @@ def test_own_footstep_planner_is_followed():
 def test_hand_upright_max_error_out_of_range_names_the_parameter(bad):
     gains = WalkingParams().arms.hand_upright
     with pytest.raises(ValueError, match="arms.hand_upright_max_error"):
-        HandUprightTask(0, gains, bad)
+        HandUprightObjective(0, gains, bad)

@@ -21,19 +21,6 @@ import sys
 from pathlib import Path
 from typing import Any
 
-# Built-in default agent per task id (None = flat ground). Replaced by reference solvers as
-# they land.
-DEFAULT_AGENTS: dict[int | None, str] = {
-    None: "pr2_drake.controllers.standing:StandingController",
-    1: "pr2_drake.agents.walk_to_goal:RockyRoadAgent",
-    2: "pr2_drake.agents.valve:ValveAgent",
-    3: "pr2_drake.agents.moving_bar:MovingBarAgent",
-    4: "pr2_drake.agents.walk_to_goal:SlopeAgent",
-    5: "pr2_drake.agents.steps_button:StepsButtonAgent",
-    6: "pr2_drake.agents.search.agent:ObjectSearchAgent",
-}
-
-
 def load_agent_class(spec: str) -> type:
     """Import ``module:Class`` or ``path/to/file.py:Class``.
 

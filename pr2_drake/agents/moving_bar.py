@@ -17,29 +17,29 @@ Why sideways: facing across the path, the bar (0.05 m wide) must pass both soles
 both soles above 0.06 m, more than the robot's highest reliable jump gives (about 0.26 s,
 bench jumping); jumping at 0.4 m/s against the bar brings it to 0.21 s.
 
-Parameters: controllers/moving_bar_agent.yaml (m, s). (No ``from __future__ import
+Parameters: params/agents/moving_bar.yaml (m, s). (No ``from __future__ import
 annotations``: ``yaml_load_typed`` reads the field types.)
 """
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.common.yaml import yaml_load_typed
 from pydrake.systems.framework import BasicVector, Diagram, DiagramBuilder, LeafSystem
 
 from pr2_drake.agents.walk_to_goal import yaw_from_quaternion
 from pr2_drake.lifetime import weak_calc
-from pr2_drake.paths import resolve_user_path
+from pr2_drake.params import Params
 from pr2_drake.ports import BODY_STATE_SIZE, P_WB, QUAT_WB
 
 
 @dataclass
-class MovingBarParams:
-    """See controllers/moving_bar_agent.yaml."""
+class MovingBarParams(Params):
+    """See params/agents/moving_bar.yaml."""
 
+    FILE: ClassVar[str] = "params/agents/moving_bar.yaml"
     apex: float = 0.18
     lateral_speed: float = 0.4
     clear_from: float = 0.040
@@ -50,12 +50,7 @@ class MovingBarParams:
     hip_half_width: float = 0.11
     min_bar_speed: float = 0.5
     period: float = 0.01
-    jump_params: str = "controllers/jumping_bar.yaml"
 
-    @staticmethod
-    def load(path: str = "controllers/moving_bar_agent.yaml") -> "MovingBarParams":
-        return yaml_load_typed(schema=MovingBarParams,
-                               filename=str(resolve_user_path(path, "moving-bar agent")))
 
 
 @dataclass
@@ -92,9 +87,13 @@ def takeoff_time(t: float, soles_xy: np.ndarray, bar_xy: np.ndarray, bar_vel_xy:
     return JumpTiming(t_to, -p.lateral_speed * d, (p.clear_until - p.clear_from) - need)
 
 
+SAMPLES = 4  # bar positions the speed is measured from (three finite differences)
+
+
 class BarJumpPlanner(LeafSystem):
     """``body_state`` and ``task_feedback`` in, ``jump_command`` (4) out: zeros until the bar
-    moves, then one request (t_takeoff, vx, vy in the heading frame, apex), held."""
+    moves, then one request (t_takeoff, vx, vy in the heading frame, apex), held. Its memory
+    (the request, the bar's last positions) is discrete state."""
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
@@ -105,12 +104,12 @@ class BarJumpPlanner(LeafSystem):
         self._body = self.DeclareVectorInputPort("body_state", BODY_STATE_SIZE)
         self._fb = self.DeclareAbstractInputPort("task_feedback", AbstractValue.Make(dict()))
         self._cmd = self.DeclareDiscreteState(4)
+        # The bar's last SAMPLES positions: (t [s], x, y [m]) each, oldest first, and how many.
+        self._hist = self.DeclareDiscreteState(3 * SAMPLES + 1)
         self.DeclarePeriodicDiscreteUpdateEvent(self.params.period, 0.0, self._update)
         self.DeclareVectorOutputPort("jump_command", 4, weak_calc(self._calc),
                                      prerequisites_of_calc={self.discrete_state_ticket(
                                          self._cmd)})
-        self.timing: JumpTiming | None = None
-        self._samples: list = []
 
     def _update(self, context, state) -> None:
         cmd = state.get_mutable_vector(self._cmd)
@@ -120,10 +119,14 @@ class BarJumpPlanner(LeafSystem):
         t = context.get_time()
         v = np.asarray(fb.get("bar_velocity", np.zeros(3)), float)[:2]
         pos = np.asarray(fb.get("bar_position", np.zeros(3)), float)[:2]
-        hist = self._samples
-        hist.append((t, pos))
-        del hist[:-4]
-        if float(np.hypot(*v)) < self.params.min_bar_speed or len(hist) < 4:
+        hist = self._samples(context) + [(t, pos)]
+        del hist[:-SAMPLES]
+        memory = np.zeros(3 * SAMPLES + 1)
+        for k, (tk, pk) in enumerate(hist):
+            memory[3 * k:3 * k + 3] = tk, pk[0], pk[1]
+        memory[-1] = len(hist)
+        state.get_mutable_vector(self._hist).SetFromVector(memory)
+        if float(np.hypot(*v)) < self.params.min_bar_speed or len(hist) < SAMPLES:
             return
         # Wait for a steady speed: the bar's drive overshoots for a few tens of ms after it
         # starts, and the timing divides by the speed. Use the speed from positions (finite
@@ -140,10 +143,14 @@ class BarJumpPlanner(LeafSystem):
         hw = self.params.hip_half_width
         soles = np.array([p + hw * np.array([-s, c]), p - hw * np.array([-s, c])])
         timing = takeoff_time(t, soles, pos, v, self.bar_width, self.params)
-        self.timing = timing
         v_H = np.array([c * timing.velocity_W[0] + s * timing.velocity_W[1],
                         -s * timing.velocity_W[0] + c * timing.velocity_W[1]])
         cmd.SetFromVector([timing.t_takeoff, v_H[0], v_H[1], self.params.apex])
+
+    def _samples(self, context) -> list:
+        """The bar's last positions in ``context``: [(t [s], p_xy [m])], oldest first."""
+        h = context.get_discrete_state(self._hist).get_value()
+        return [(float(h[3 * k]), h[3 * k + 1:3 * k + 3].copy()) for k in range(int(h[-1]))]
 
     def _calc(self, context, output: BasicVector) -> None:
         output.SetFromVector(context.get_discrete_state(self._cmd).get_value())
@@ -154,12 +161,15 @@ class MovingBarAgent(Diagram):
 
     Args:
         priors: the task's priors; ``bar_size`` (length, width, height) [m] gives the width.
-        params: agent YAML (default controllers/moving_bar_agent.yaml).
+        params: agent YAML (default params/agents/moving_bar.yaml).
+        jump_params: overrides of params/controllers/jumping.yaml (task 3's row:
+            params/controllers/jumping_bar.yaml, the jump the clear window was measured with).
     """
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
-    def __init__(self, priors: dict[str, Any] | None = None, params: str | None = None):
+    def __init__(self, priors: dict[str, Any] | None = None, params: str | None = None,
+                 jump_params: str | None = None):
         super().__init__()
         from pr2_drake.controllers.jump_params import JumpParams
         from pr2_drake.controllers.jumping import JumpController
@@ -167,10 +177,8 @@ class MovingBarAgent(Diagram):
 
         priors = priors or {}
         size = priors.get("bar_size", (2.0, 0.05, 0.05))
-        p = MovingBarParams.load(params or "controllers/moving_bar_agent.yaml")
-        jp = JumpParams.load()
-        if p.jump_params:
-            jp = jp.with_overrides(p.jump_params)
+        p = MovingBarParams.load(params)
+        jp = JumpParams.load(overrides=[jump_params] if jump_params else [])
         builder = DiagramBuilder()
         timer = builder.AddNamedSystem("bar_jump_planner", BarJumpPlanner(float(size[1]), p))
         jumper = builder.AddNamedSystem("jumper", JumpController(None, jp))

@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import Any
 
 from pr2_drake.controllers.standing import StandingPolicy
-from pr2_drake.observation import command_to_dict, state_vectors_from_obs
+from pr2_drake.observation import command_to_dict, state_vectors
 
 
 class StandingAgent:
@@ -19,7 +19,7 @@ class StandingAgent:
         self.policy = StandingPolicy()
 
     def next_action(self, obs: dict[str, Any]) -> dict[str, Any]:
-        joint_state, body_state = state_vectors_from_obs(obs)
+        joint_state, body_state = state_vectors(obs)
         legs, arms = self.policy.compute(joint_state, body_state)
         return {"legs": command_to_dict(legs), "arms": command_to_dict(arms), "pick": None,
                 "release": False}

@@ -20,32 +20,38 @@ controller with the arms in the whole-body QP (``WalkingController(arms="effort"
 
 Only the public observation (``body_state``, ``joint_state``, ``pick_state``) and the task's
 priors (``valve_center``, ``valve_dimensions``) are used. Angles in rad unless named _deg;
-positions in m, world frame W. Parameters: controllers/valve_agent.yaml.
+positions in m, world frame W. Parameters: params/agents/valve.yaml.
 
 (No ``from __future__ import annotations``: ``yaml_load_typed`` reads the field types.)
 """
 
 import enum
 import math
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.common.yaml import yaml_load_typed
-from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.framework import Diagram
 
-from pr2_drake.agents.sequencer import TaskSequencer
+from pr2_drake.agents.sequencer import (
+    Now,
+    SequencerMemory,
+    TaskSequencer,
+    along_path,
+    build_sequencer_agent,
+)
 from pr2_drake.agents.walk_to_goal import GoalPlannerParams, goal_velocity, yaw_from_quaternion
 from pr2_drake.grasp import PickState
-from pr2_drake.paths import resolve_user_path
+from pr2_drake.params import Params
 from pr2_drake.ports import BODY_STATE_SIZE, JOINT_STATE_SIZE, P_WB, QUAT_WB
 
 
 @dataclass
-class ValveAgentParams:
-    """See controllers/valve_agent.yaml (m, s, deg where named)."""
+class ValveAgentParams(Params):
+    """See params/agents/valve.yaml (m, s, deg where named)."""
 
+    FILE: ClassVar[str] = "params/agents/valve.yaml"
     period: float = 0.02  # [s] sequencer update period
     stand_distance: float = 0.45  # base to valve axis, horizontal
     approach_radius: float = 0.30  # switch from WALK to APPROACH this close to the point
@@ -66,10 +72,6 @@ class ValveAgentParams:
     pick_timeout: float = 1.5  # [s] without attachment: retry closer to the axis
     hold_time: float = 0.5  # [s] at the end points before the next phase
 
-    @staticmethod
-    def load(path: str = "controllers/valve_agent.yaml") -> "ValveAgentParams":
-        return yaml_load_typed(schema=ValveAgentParams,
-                               filename=str(resolve_user_path(path, "valve agent parameters")))
 
 
 class Stage(enum.IntEnum):
@@ -84,9 +86,23 @@ class Stage(enum.IntEnum):
     DONE = 8
 
 
-def _smooth(s: float) -> float:
-    s = min(max(s, 0.0), 1.0)
-    return s * s * (3.0 - 2.0 * s)
+@dataclass
+class ValveMemory(SequencerMemory):
+    """What the valve sequencer remembers (besides :class:`SequencerMemory`): the standing
+    point (x, y, yaw) and the approach frame's yaw [rad], the hand's path (waypoints in W [m],
+    from ``path_t0`` [s]), where the hand picked the rim (angle in the approach frame, radius
+    and height about the valve's centre) and its angle now, and the pick tries."""
+
+    stage: int = Stage.WALK
+    stand: np.ndarray | None = None
+    yaw_A: float = 0.0
+    path: list = field(default_factory=list)
+    path_t0: float = 0.0
+    phi_pick: float = 0.0
+    r_pick: float = 0.0
+    z_pick: float = 0.0
+    phi_now: float = 0.0
+    pick_tries: int = 0
 
 
 class ValveSequencer(TaskSequencer):
@@ -94,7 +110,7 @@ class ValveSequencer(TaskSequencer):
 
     Inputs: ``body_state``, ``joint_state``, ``pick_state``, ``walker_status`` (the walking
     controller's status). Outputs: ``velocity_command`` (3), ``hand_targets`` ([left, right]),
-    ``pick`` (str), ``release`` (bool), ``stage`` (1).
+    ``pick`` (str), ``release`` (bool), ``stage`` (1). Memory: :class:`ValveMemory`.
     """
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
@@ -104,7 +120,7 @@ class ValveSequencer(TaskSequencer):
     def __init__(self, center, rim_radius: float, params: ValveAgentParams | None = None,
                  goal_params: GoalPlannerParams | None = None):
         super().__init__()
-        from pr2_drake.controllers.wb_model import WholeBodyModel
+        from pr2_drake.controllers.model import WholeBodyModel
 
         self.center = np.asarray(center, dtype=float).reshape(-1)
         if self.center.shape != (3,) or not np.all(np.isfinite(self.center)):
@@ -112,162 +128,152 @@ class ValveSequencer(TaskSequencer):
         self.rim_radius = float(rim_radius)  # outer radius of the wheel [m]
         self.p = params or ValveAgentParams()
         self.goal_params = goal_params or GoalPlannerParams()
-        self.model = WholeBodyModel()  # forward kinematics of the observed state
+        self.model = WholeBodyModel()  # forward kinematics of the observed state (scratch)
         self._bs = self.DeclareVectorInputPort("body_state", BODY_STATE_SIZE)
         self._js = self.DeclareVectorInputPort("joint_state", JOINT_STATE_SIZE)
         self._pick_state = self.DeclareAbstractInputPort("pick_state",
                                                          AbstractValue.Make(PickState()))
-        self._status = self.DeclareVectorInputPort("walker_status", 6)
-        # The sequencer's memory is in this object; the outputs change only at its updates
-        # (which write the stage into this discrete state), not with the inputs.
-        self._stage_state = self.DeclareDiscreteState(1)
-        self.declare_command_outputs(grasp=True)
-        self.DeclarePeriodicUnrestrictedUpdateEvent(self.p.period, 0.0, self._update)
-        self.reset()
-
-    def reset(self) -> None:
-        self.stage = Stage.WALK
-        self.t_stage = 0.0
-        self.cmd = np.zeros(3)
-        self.targets: list = [None, None]
-        self.pick = ""
-        self.release = False
-        self.stand: np.ndarray | None = None  # standing point (x, y) and yaw
-        self.yaw_A = 0.0
-        self.path: list = []  # REACH waypoints
-        self.path_start = None
-        self.phi_pick = 0.0
-        self.r_pick = self.p.grasp_radius
-        self.z_pick = 0.0
-        self.phi_now = 0.0
-        self.pick_tries = 0
-        self.t_last = -1.0
+        self.declare_sequencer(ValveMemory(r_pick=self.p.grasp_radius), self.p.period,
+                               grasp=True)
+        # The stages in the order an update tries them (one may hand over to the next).
+        self._stages = ((Stage.WALK, self._walk), (Stage.APPROACH, self._approach),
+                        (Stage.SETTLE, self._settle), (Stage.REACH, self._reach),
+                        (Stage.PICK, self._pick), (Stage.TURN, self._turn),
+                        (Stage.RELEASE, self._release), (Stage.RETRACT, self._retract),
+                        (Stage.DONE, self._done))
 
     # ---- helpers -----------------------------------------------------------------------------
-    def _go(self, stage: Stage, t: float) -> None:
-        self.stage = stage
-        self.t_stage = t
+    @staticmethod
+    def _go(m: ValveMemory, stage: Stage, t: float) -> None:
+        m.stage = stage
+        m.t_stage = t
 
-    def _rim_point(self, phi_A: float, r: float, dz: float) -> np.ndarray:
+    def _rim_point(self, m: ValveMemory, phi_A: float, r: float, dz: float) -> np.ndarray:
         """Point at angle phi_A (approach frame) and radius r about the axis, dz above c."""
-        a = self.yaw_A + phi_A
+        a = m.yaw_A + phi_A
         return self.center + np.array([r * math.cos(a), r * math.sin(a), dz])
 
-    def _hand_angle(self, p_WH: np.ndarray) -> float:
+    def _hand_angle(self, m: ValveMemory, p_WH: np.ndarray) -> float:
         """Angle of the hand about the valve axis in the approach frame [rad], within pi of
         ``angle_start_deg``."""
         d = p_WH - self.center
         ref = math.radians(self.p.angle_start_deg)
-        a = math.atan2(d[1], d[0]) - self.yaw_A - ref
+        a = math.atan2(d[1], d[0]) - m.yaw_A - ref
         return ref + math.atan2(math.sin(a), math.cos(a))
 
     # ---- the sequencer -----------------------------------------------------------------------
-    def _update(self, context, state) -> None:
+    def step(self, context, m: ValveMemory) -> None:
         t = context.get_time()
-        if t < self.t_last - 1e-9:
-            self.reset()
-        self.t_last = t
         p = self.p
         bs = self._bs.Eval(context)
         js = self._js.Eval(context)
         q, v = self.model.state_from_ports(js, bs)
         self.model.update(q, v)
         p_WB = bs[P_WB]
-        yaw = yaw_from_quaternion(bs[QUAT_WB])
-        pick = self._pick_state.Eval(context)
-        status = self._status.Eval(context)
-        standing = int(status[3]) == 0
-        elapsed = t - self.t_stage
-        self.pick = ""
-        self.release = False
+        now = Now(t, p_WB, yaw_from_quaternion(bs[QUAT_WB]), self.walker_standing(context),
+                  t - m.t_stage, self._pick_state.Eval(context))
+        m.pick = ""
+        m.release = False
         c = self.center
-        if self.stand is None:
+        if m.stand is None:
             d = c[:2] - p_WB[:2]
-            self.yaw_A = math.atan2(d[1], d[0])
-            xy = c[:2] - p.stand_distance * np.array([math.cos(self.yaw_A),
-                                                      math.sin(self.yaw_A)])
-            self.stand = np.array([xy[0], xy[1], self.yaw_A])
-        if self.stage == Stage.WALK:
-            err = self.stand[:2] - p_WB[:2]
-            if float(np.hypot(*err)) < p.approach_radius:
-                self._go(Stage.APPROACH, t)
-            else:
-                self.cmd = goal_velocity(p_WB, yaw, self.stand[:2], self.goal_params)
-        if self.stage == Stage.APPROACH:
-            err_W = self.stand[:2] - p_WB[:2]
-            e_yaw = math.atan2(math.sin(self.stand[2] - yaw), math.cos(self.stand[2] - yaw))
-            cy, sy = math.cos(yaw), math.sin(yaw)
-            ex, ey = cy * err_W[0] + sy * err_W[1], -sy * err_W[0] + cy * err_W[1]
-            if (float(np.hypot(ex, ey)) < p.position_tolerance
-                    and abs(e_yaw) < math.radians(p.yaw_tolerance_deg)):
-                self.cmd = np.zeros(3)
-                self._go(Stage.SETTLE, t)
-            else:
-                s = p.approach_speed
-                self.cmd = np.array([min(max(p.approach_gain * ex, -s), s),
-                                     min(max(p.approach_gain * ey, -s), s),
-                                     min(max(p.approach_yaw_gain * e_yaw, -0.4), 0.4)])
-        if self.stage == Stage.SETTLE:
-            self.cmd = np.zeros(3)
-            if not standing:
-                self.t_stage = t
-            elif elapsed >= p.settle_time:
-                self._start_reach(t)
-        if self.stage == Stage.REACH:
-            if self._follow_path(t):
-                self._go(Stage.PICK, t)
-        if self.stage == Stage.PICK:
-            if pick.attached:
-                p_WH = self.model.hand_point(self.HAND)[0]
-                d = p_WH - c
-                self.r_pick = float(np.hypot(d[0], d[1]))
-                self.z_pick = float(d[2])
-                self.phi_pick = self._hand_angle(p_WH)
-                self.phi_now = self.phi_pick
-                self._go(Stage.TURN, t)
-            elif elapsed > p.pick_timeout:
-                # Not in the volume: aim closer to the axis and lower, and try again.
-                self.pick_tries += 1
-                r = max(p.grasp_radius - 0.03 * self.pick_tries, 0.12)
-                self.targets[self.HAND] = self._rim_point(
-                    math.radians(p.angle_start_deg), r, p.grasp_height - 0.01 * self.pick_tries)
-                self.t_stage = t
-            else:
-                self.pick = "left_hand"
-        if self.stage == Stage.TURN:
-            if not pick.attached:
-                self._go(Stage.PICK, t)  # lost the wheel: pick again where the hand is
-            else:
-                end = math.radians(p.angle_end_deg)
-                step = math.radians(p.turn_speed_deg) * p.period
-                direction = 1.0 if end > self.phi_pick else -1.0
-                self.phi_now += direction * step
-                if direction * (self.phi_now - end) > 0:
-                    self.phi_now = end
-                self.targets[self.HAND] = self._rim_point(self.phi_now, self.r_pick, self.z_pick)
-                travelled = abs(self._hand_angle(self.model.hand_point(self.HAND)[0])
-                                - self.phi_pick)
-                if travelled >= math.radians(p.release_angle_deg) or (
-                        self.phi_now == end and elapsed > 30.0):
-                    self._go(Stage.RELEASE, t)
-        if self.stage == Stage.RELEASE:
-            self.release = True
-            if not pick.attached and elapsed > p.hold_time:
-                p_WH = self.model.hand_point(self.HAND)[0]
-                up = p_WH + np.array([0.0, 0.0, 0.05])
-                out = self._rim_point(self._hand_angle(p_WH), self.r_pick + 0.12, self.z_pick
-                                      + 0.05)
-                self._set_path([up, out], t)
-                self._go(Stage.RETRACT, t)
-        if self.stage == Stage.RETRACT:
-            if self._follow_path(t):
-                self.targets[self.HAND] = None
-                self._go(Stage.DONE, t)
-        if self.stage == Stage.DONE:
-            self.cmd = np.zeros(3)
-        state.get_mutable_discrete_state().get_mutable_vector(0).SetAtIndex(0, float(self.stage))
+            m.yaw_A = math.atan2(d[1], d[0])
+            xy = c[:2] - p.stand_distance * np.array([math.cos(m.yaw_A), math.sin(m.yaw_A)])
+            m.stand = np.array([xy[0], xy[1], m.yaw_A])
+        for stage, run in self._stages:
+            if m.stage == stage:
+                run(m, now)
 
-    def _start_reach(self, t: float) -> None:
+    def _walk(self, m: ValveMemory, now: Now) -> None:
+        err = m.stand[:2] - now.p_WB[:2]
+        if float(np.hypot(*err)) < self.p.approach_radius:
+            self._go(m, Stage.APPROACH, now.t)
+        else:
+            m.cmd = goal_velocity(now.p_WB, now.yaw, m.stand[:2], self.goal_params)
+
+    def _approach(self, m: ValveMemory, now: Now) -> None:
+        p, yaw = self.p, now.yaw
+        err_W = m.stand[:2] - now.p_WB[:2]
+        e_yaw = math.atan2(math.sin(m.stand[2] - yaw), math.cos(m.stand[2] - yaw))
+        cy, sy = math.cos(yaw), math.sin(yaw)
+        ex, ey = cy * err_W[0] + sy * err_W[1], -sy * err_W[0] + cy * err_W[1]
+        if (float(np.hypot(ex, ey)) < p.position_tolerance
+                and abs(e_yaw) < math.radians(p.yaw_tolerance_deg)):
+            m.cmd = np.zeros(3)
+            self._go(m, Stage.SETTLE, now.t)
+        else:
+            s = p.approach_speed
+            m.cmd = np.array([min(max(p.approach_gain * ex, -s), s),
+                              min(max(p.approach_gain * ey, -s), s),
+                              min(max(p.approach_yaw_gain * e_yaw, -0.4), 0.4)])
+
+    def _settle(self, m: ValveMemory, now: Now) -> None:
+        m.cmd = np.zeros(3)
+        if not now.standing:
+            m.t_stage = now.t
+        elif now.elapsed >= self.p.settle_time:
+            self._start_reach(m, now.t)
+
+    def _reach(self, m: ValveMemory, now: Now) -> None:
+        if self._follow_path(m, now.t):
+            self._go(m, Stage.PICK, now.t)
+
+    def _pick(self, m: ValveMemory, now: Now) -> None:
+        p = self.p
+        if now.pick.attached:
+            p_WH = self.model.hand_point(self.HAND)[0]
+            d = p_WH - self.center
+            m.r_pick = float(np.hypot(d[0], d[1]))
+            m.z_pick = float(d[2])
+            m.phi_pick = self._hand_angle(m, p_WH)
+            m.phi_now = m.phi_pick
+            self._go(m, Stage.TURN, now.t)
+        elif now.elapsed > p.pick_timeout:
+            # Not in the volume: aim closer to the axis and lower, and try again.
+            m.pick_tries += 1
+            r = max(p.grasp_radius - 0.03 * m.pick_tries, 0.12)
+            m.targets[self.HAND] = self._rim_point(
+                m, math.radians(p.angle_start_deg), r, p.grasp_height - 0.01 * m.pick_tries)
+            m.t_stage = now.t
+        else:
+            m.pick = "left_hand"
+
+    def _turn(self, m: ValveMemory, now: Now) -> None:
+        p = self.p
+        if not now.pick.attached:
+            self._go(m, Stage.PICK, now.t)  # lost the wheel: pick again where the hand is
+            return
+        end = math.radians(p.angle_end_deg)
+        step = math.radians(p.turn_speed_deg) * p.period
+        direction = 1.0 if end > m.phi_pick else -1.0
+        m.phi_now += direction * step
+        if direction * (m.phi_now - end) > 0:
+            m.phi_now = end
+        m.targets[self.HAND] = self._rim_point(m, m.phi_now, m.r_pick, m.z_pick)
+        travelled = abs(self._hand_angle(m, self.model.hand_point(self.HAND)[0]) - m.phi_pick)
+        if travelled >= math.radians(p.release_angle_deg) or (
+                m.phi_now == end and now.elapsed > 30.0):
+            self._go(m, Stage.RELEASE, now.t)
+
+    def _release(self, m: ValveMemory, now: Now) -> None:
+        m.release = True
+        if not now.pick.attached and now.elapsed > self.p.hold_time:
+            p_WH = self.model.hand_point(self.HAND)[0]
+            up = p_WH + np.array([0.0, 0.0, 0.05])
+            out = self._rim_point(m, self._hand_angle(m, p_WH), m.r_pick + 0.12, m.z_pick + 0.05)
+            self._set_path(m, [up, out], now.t)
+            self._go(m, Stage.RETRACT, now.t)
+
+    def _retract(self, m: ValveMemory, now: Now) -> None:
+        if self._follow_path(m, now.t):
+            m.targets[self.HAND] = None
+            self._go(m, Stage.DONE, now.t)
+
+    @staticmethod
+    def _done(m: ValveMemory, now: Now) -> None:
+        m.cmd = np.zeros(3)
+
+    def _start_reach(self, m: ValveMemory, t: float) -> None:
         p = self.p
         p_WH = self.model.hand_point(self.HAND)[0]
         rim_out = self.rim_radius + p.lift_clearance
@@ -277,27 +283,23 @@ class ValveSequencer(TaskSequencer):
         rise_xy = p_WH[:2] if r_now > rim_out else (
             self.center[:2] + d[:2] * (rim_out / max(r_now, 1e-6)))
         rise = np.array([rise_xy[0], rise_xy[1], self.center[2] + p.grasp_height])
-        grasp = self._rim_point(math.radians(p.angle_start_deg), p.grasp_radius, p.grasp_height)
-        self._set_path([rise, grasp], t)
-        self._go(Stage.REACH, t)
+        grasp = self._rim_point(m, math.radians(p.angle_start_deg), p.grasp_radius,
+                                p.grasp_height)
+        self._set_path(m, [rise, grasp], t)
+        self._go(m, Stage.REACH, t)
 
-    def _set_path(self, points: list, t: float) -> None:
+    def _set_path(self, m: ValveMemory, points: list, t: float) -> None:
         start = self.model.hand_point(self.HAND)[0].copy()
-        self.path = [start] + [np.asarray(x, dtype=float) for x in points]
-        self.path_t0 = t
+        m.path = [start] + [np.asarray(x, dtype=float) for x in points]
+        m.path_t0 = t
 
-    def _follow_path(self, t: float) -> bool:
+    def _follow_path(self, m: ValveMemory, t: float) -> bool:
         """Move the hand target along the waypoints (``reach_time`` each, smooth); True when
         the last has been held for ``hold_time``."""
         T = self.p.reach_time
-        k = (t - self.path_t0) / T
-        seg = min(int(k), len(self.path) - 2)
-        s = _smooth(k - seg)
-        a, b = self.path[seg], self.path[seg + 1]
-        self.targets[self.HAND] = a + (b - a) * s
-        return k >= len(self.path) - 1 + self.p.hold_time / T
+        m.targets[self.HAND], k = along_path(m.path, m.path_t0, t, T)
+        return k >= len(m.path) - 1 + self.p.hold_time / T
 
-    # ---- outputs -----------------------------------------------------------------------------
 
 class ValveAgent(Diagram):
     """Task 2 reference agent (see the module docstring).
@@ -308,40 +310,27 @@ class ValveAgent(Diagram):
 
     Args:
         priors: the task's priors; needs ``valve_center`` (x, y, z) in world [m].
-        params: sequencer YAML (default controllers/valve_agent.yaml).
+        params: sequencer YAML (default params/agents/valve.yaml).
+        goal_params: goal-planner YAML of the walk (default params/agents/goal_planner.yaml).
+        walking_params: overrides of params/controllers/walking.yaml (default: none).
     """
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
-    def __init__(self, priors: dict[str, Any], params: str | None = None):
+    def __init__(self, priors: dict[str, Any], params: str | None = None,
+                 goal_params: str | None = None, walking_params: str | None = None):
         super().__init__()
         from pr2_drake.controllers.walking import WalkingController
 
         center = priors.get("valve_center")
         if center is None:
             raise ValueError(f"ValveAgent needs a 'valve_center' prior; got {sorted(priors)}")
-        seq_params = ValveAgentParams.load(params or "controllers/valve_agent.yaml")
-        goal_params = GoalPlannerParams.load("controllers/goal_planner.yaml")
-        builder = DiagramBuilder()
+        from pr2_drake.controllers.walking_params import WalkingParams
+
+        seq_params = ValveAgentParams.load(params)
+        goal = GoalPlannerParams.load(goal_params)
+        wparams = (WalkingParams.load(overrides=[walking_params]) if walking_params else None)
         dims = priors.get("valve_dimensions") or {}
         rim_radius = 0.5 * float(dims.get("diameter", 0.54))
-        seq = builder.AddNamedSystem("sequencer", ValveSequencer(center, rim_radius, seq_params,
-                                                                 goal_params))
-        walker = builder.AddNamedSystem("walker", WalkingController(arms="effort"))
-        js = builder.ExportInput(walker.GetInputPort("joint_state"), "joint_state")
-        bs = builder.ExportInput(walker.GetInputPort("body_state"), "body_state")
-        ps = builder.ExportInput(walker.GetInputPort("pick_state"), "pick_state")
-        builder.ConnectInput(js, seq.GetInputPort("joint_state"))
-        builder.ConnectInput(bs, seq.GetInputPort("body_state"))
-        builder.ConnectInput(ps, seq.GetInputPort("pick_state"))
-        builder.Connect(walker.GetOutputPort("status"), seq.GetInputPort("walker_status"))
-        builder.Connect(seq.GetOutputPort("velocity_command"),
-                        walker.GetInputPort("velocity_command"))
-        builder.Connect(seq.GetOutputPort("hand_targets"), walker.GetInputPort("hand_targets"))
-        builder.ExportOutput(walker.GetOutputPort("legs_command"), "legs_command")
-        builder.ExportOutput(walker.GetOutputPort("arms_command"), "arms_command")
-        builder.ExportOutput(seq.GetOutputPort("pick"), "pick")
-        builder.ExportOutput(seq.GetOutputPort("release"), "release")
-        builder.ExportOutput(seq.GetOutputPort("velocity_command"), "velocity_command")
-        builder.ExportOutput(seq.GetOutputPort("stage"), "stage")
-        builder.BuildInto(self)
+        build_sequencer_agent(self, ValveSequencer(center, rim_radius, seq_params, goal),
+                              WalkingController(wparams, arms="effort"))

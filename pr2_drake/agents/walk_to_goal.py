@@ -11,31 +11,31 @@ Task reference agents (the defaults of ``pr2-drake run --task 1`` and ``--task 4
 
 - :class:`RockyRoadAgent` (task 1): unknown stones: swing soles aim below the stance sole and
   touch down when their descent is blocked (contact inferred from kinematics), slower walking
-  (controllers/walking_rough.yaml, controllers/goal_planner_rough.yaml).
+  (params/controllers/walking_rough.yaml, params/agents/goal_planner_rough.yaml).
 - :class:`SlopeAgent` (task 4): footholds on the incline from the ``slope_angle_deg`` prior and
   the measured pitch of the stance sole, capped at the goal height; soles land pitched like the
   incline; the first step onto the ramp is caught as an early (blocked) touchdown
-  (controllers/walking_slope.yaml).
+  (params/controllers/walking_slope.yaml).
 """
 
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
-from pydrake.common.yaml import yaml_load_typed
 from pydrake.systems.framework import BasicVector, Diagram, DiagramBuilder, LeafSystem
 
 from pr2_drake.lifetime import weak_calc
-from pr2_drake.paths import resolve_user_path
+from pr2_drake.params import Params
 from pr2_drake.ports import BODY_STATE_SIZE, P_WB, QUAT_WB
 
 
 @dataclass
-class GoalPlannerParams:
+class GoalPlannerParams(Params):
     """Speeds in m/s and rad/s, distances in m, angles in rad."""
 
+    FILE: ClassVar[str] = "params/agents/goal_planner.yaml"
     forward_speed: float = 0.25
     max_yaw_rate: float = 0.4
     yaw_gain: float = 1.2
@@ -45,10 +45,6 @@ class GoalPlannerParams:
     lateral_gain: float = 0.0
     max_lateral_speed: float = 0.08
 
-    @staticmethod
-    def load(path: str) -> "GoalPlannerParams":
-        return yaml_load_typed(schema=GoalPlannerParams,
-                               filename=str(resolve_user_path(path, "goal planner parameters")))
 
 
 def yaw_from_quaternion(q_wxyz: np.ndarray) -> float:
@@ -106,15 +102,13 @@ class WalkToGoalAgent(Diagram):
 
     Args:
         priors: the task's priors; needs ``goal_center`` (x, y[, z]) in world [m].
-        params: goal-planner YAML (default controllers/goal_planner.yaml).
-        walking_params: walking-controller YAML (default controllers/walking.yaml).
+        params: goal-planner YAML (default params/agents/goal_planner.yaml).
+        walking_params: overrides of params/controllers/walking.yaml (a partial YAML).
+
+    The task agents' files are named in their task's registry row (tasks/registry.yaml).
     """
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
-
-    #: Default goal-planner YAML and walking-parameter overrides (subclasses change them).
-    PLANNER_PARAMS = "controllers/goal_planner.yaml"
-    WALKING_OVERRIDES: str | None = None
 
     def __init__(self, priors: dict[str, Any], params: str | None = None,
                  walking_params: str | None = None):
@@ -128,10 +122,8 @@ class WalkToGoalAgent(Diagram):
             raise ValueError(
                 f"WalkToGoalAgent needs a 'goal_center' prior; the task gives {sorted(priors)}"
             )
-        planner_params = GoalPlannerParams.load(params or self.PLANNER_PARAMS)
-        wparams = WalkingParams.load(walking_params or "controllers/walking.yaml")
-        if self.WALKING_OVERRIDES:
-            wparams = wparams.with_overrides(self.WALKING_OVERRIDES)
+        planner_params = GoalPlannerParams.load(params)
+        wparams = WalkingParams.load(overrides=[walking_params] if walking_params else [])
         builder = DiagramBuilder()
         planner = builder.AddNamedSystem("planner", GoalVelocityPlanner(goal, planner_params))
         terrain = self.make_terrain(priors, np.asarray(goal, dtype=float))
@@ -159,11 +151,8 @@ class SlopeAgent(WalkToGoalAgent):
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
-    PLANNER_PARAMS = "controllers/goal_planner_slope.yaml"
-    WALKING_OVERRIDES = "controllers/walking_slope.yaml"
-
     def make_terrain(self, priors, goal):
-        from pr2_drake.controllers.footsteps import SlopeTerrain
+        from pr2_drake.controllers.planning.terrain import SlopeTerrain
 
         angle = priors.get("slope_angle_deg")
         if angle is None:
@@ -178,12 +167,10 @@ class RockyRoadAgent(WalkToGoalAgent):
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
-    PLANNER_PARAMS = "controllers/goal_planner_rough.yaml"
-    WALKING_OVERRIDES = "controllers/walking_rough.yaml"
     #: [m] swing soles aim this far below the stance sole (stone heights vary by 2 cm).
     LANDING_DROP = 0.025
 
     def make_terrain(self, priors, goal):
-        from pr2_drake.controllers.footsteps import RoughTerrain
+        from pr2_drake.controllers.planning.terrain import RoughTerrain
 
         return RoughTerrain(self.LANDING_DROP)

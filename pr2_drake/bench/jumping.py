@@ -16,8 +16,7 @@ peak |torque| / limit per joint group over the jump, the MPC solve time and the 
 real-time factor during the jump. Vertical apex heights go on past the requested list (in
 0.05 m steps) until a case fails (a fall, or an achieved apex below 80 % of the request).
 
-:class:`JumpSim` (the closed loop with settable velocity and jump commands) is also used by
-tests/test_jumping.py.
+:class:`pr2_drake.bench.rigs.JumpSim` is the closed loop (settable velocity and jump commands).
 """
 
 from __future__ import annotations
@@ -30,99 +29,9 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from pydrake.math import RollPitchYaw
-from pydrake.systems.framework import DiagramBuilder
 
+from pr2_drake.bench.rigs import JumpSim
 from pr2_drake.controllers.jump_params import JumpParams
-from pr2_drake.controllers.jumping import JumpController
-from pr2_drake.controllers.posture import ArmPosture
-from pr2_drake.controllers.walking_params import WalkingParams
-from pr2_drake.ports import EFFORT_LEGS
-from pr2_drake.robot.model import BASE_BODY
-from pr2_drake.tasks.base import FALL_HEIGHT
-
-FALL_TILT = 0.8  # [rad] pelvis roll or pitch beyond this = fallen
-
-
-class JumpSim:
-    """Testbed (flat ground or a task) + JumpController + ArmPosture, with settable commands."""
-
-    def __init__(self, params: WalkingParams | None = None,
-                 jump_params: JumpParams | None = None, task=None, seed: int = 0, start=None):
-        from pr2_drake.episode import Episode
-        from pr2_drake.scenario import Scenario
-
-        self.walker = JumpController(params, jump_params)
-        self.arms = ArmPosture(stiffness=self.walker.params.arm_stiffness,
-                               damping=self.walker.params.arm_damping)
-        kw = {} if start is None else {"start": start}
-        episode = Episode(Scenario(task=task, seed=seed, seconds=math.inf, **kw), self._wire)
-        self.episode, self.testbed = episode, episode.testbed
-        self.simulator, self.context = episode.simulator, episode.context
-        self.plant = self.testbed.plant
-        self.plant_context = episode.plant_context
-        self.walker_context = self.walker.GetMyMutableContextFromRoot(self.context)
-        self.tb_context = episode.tb_context
-        self.base = self.plant.GetBodyByName(BASE_BODY, self.testbed.robot)
-        self.soles = [self.plant.GetFrameByName(f"{s}_sole", self.testbed.robot)
-                      for s in ("l", "r")]
-        self.set_command(0.0, 0.0, 0.0)
-        self.set_jump(None)
-        self.simulator.Initialize()
-
-    def _wire(self, builder: DiagramBuilder, tb) -> None:
-        builder.AddSystem(self.walker)
-        builder.AddSystem(self.arms)
-        builder.Connect(tb.GetOutputPort("joint_state"), self.walker.GetInputPort("joint_state"))
-        builder.Connect(tb.GetOutputPort("body_state"), self.walker.GetInputPort("body_state"))
-        builder.Connect(self.walker.GetOutputPort("legs_command"), tb.GetInputPort("legs_command"))
-        builder.Connect(self.arms.GetOutputPort("arms_command"), tb.GetInputPort("arms_command"))
-
-    def set_command(self, vx: float, vy: float, yaw_rate: float) -> None:
-        self.walker.GetInputPort("velocity_command").FixValue(
-            self.walker_context, np.array([vx, vy, yaw_rate], dtype=float))
-
-    def set_jump(self, command) -> None:
-        """(t_takeoff, vx, vy, apex) or None (no jump)."""
-        c = np.zeros(4) if command is None else np.asarray(command, dtype=float)
-        self.walker.GetInputPort("jump_command").FixValue(self.walker_context, c)
-
-    @property
-    def time(self) -> float:
-        return self.context.get_time()
-
-    def advance(self, t: float) -> None:
-        self.simulator.AdvanceTo(t)
-
-    def com(self) -> tuple[np.ndarray, np.ndarray]:
-        p = self.plant.CalcCenterOfMassPositionInWorld(self.plant_context)
-        v = self.plant.CalcCenterOfMassTranslationalVelocityInWorld(self.plant_context)
-        return p, v
-
-    def sole_heights(self) -> np.ndarray:
-        """Lowest contact point height of each sole above z = 0 [m]."""
-        m = self.walker.core.model
-        out = []
-        for f in self.soles:
-            X = f.CalcPoseInWorld(self.plant_context)
-            out.append(float(((X.rotation().matrix() @ m.p_SC)[2] + X.translation()[2]).min()))
-        return np.array(out)
-
-    def sole_positions(self) -> list[np.ndarray]:
-        return [f.CalcPoseInWorld(self.plant_context).translation().copy() for f in self.soles]
-
-    def leg_torques(self) -> np.ndarray:
-        js = self.testbed.GetOutputPort("joint_state").Eval(self.tb_context)
-        return np.asarray(js[EFFORT_LEGS], dtype=float)
-
-    def fallen(self) -> bool:
-        X = self.plant.EvalBodyPoseInWorld(self.plant_context, self.base)
-        rpy = RollPitchYaw(X.rotation())
-        return bool(X.translation()[2] < FALL_HEIGHT or abs(rpy.roll_angle()) > FALL_TILT
-                    or abs(rpy.pitch_angle()) > FALL_TILT)
-
-    def jump_status(self) -> np.ndarray:
-        return self.walker.GetOutputPort("jump_status").Eval(self.walker_context)
 
 
 @dataclass

@@ -20,7 +20,7 @@ import time
 from pr2_drake.camera import CameraSettings
 from pr2_drake.compete.proxy import run_sandboxed_episode
 from pr2_drake.compete.sandbox import SandboxLimits, isolation_note
-from pr2_drake.episode import run_episode
+from pr2_drake.run import run_episode
 from pr2_drake.scenario import Scenario
 from pr2_drake.testbed import task_time_step
 

@@ -10,15 +10,13 @@ velocity, whether the robot fell, and the wall-clock real-time factor. Then the 
 of 0.3 m/s walking (median of ``--repeats`` runs) and the split of wall time between the plant
 (MultibodyPlant step) and the controller (cProfile).
 
-:class:`WalkingSim` (the closed loop with a settable command and torso pushes) is also used by
-tests/test_walking.py.
+:class:`pr2_drake.bench.rigs.WalkingSim` is the closed loop (a settable command, torso pushes).
 """
 
 from __future__ import annotations
 
 import argparse
 import cProfile
-import math
 import pstats
 import statistics
 import sys
@@ -26,126 +24,10 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.math import RollPitchYaw
-from pydrake.multibody.math import SpatialForce
-from pydrake.multibody.plant import ExternallyAppliedSpatialForce
-from pydrake.systems.framework import DiagramBuilder
 
-from pr2_drake.controllers.posture import ArmPosture
+from pr2_drake.bench.rigs import WalkingSim
 from pr2_drake.controllers.walking import WalkingController
 from pr2_drake.controllers.walking_params import WalkingParams
-from pr2_drake.robot.model import BASE_BODY
-from pr2_drake.tasks.base import FALL_HEIGHT  # [m] base_link below this = fallen
-
-FALL_TILT = 0.8  # [rad] pelvis roll or pitch beyond this = fallen
-PUSH_POINT_B = np.array([0.0, 0.0, 0.20])  # [m] torso centre in base_link
-
-
-class WalkingSim:
-    """Testbed + WalkingController + ArmPosture, with a settable command and pushes.
-
-    With ``arms="effort"`` the walking controller's QP drives the arms (no ArmPosture); then
-    :meth:`set_hand_targets` sets its ``hand_targets`` input and its ``pick_state`` input
-    follows the testbed's. ``controller_kwargs`` go to the WalkingController (footsteps,
-    terrain). ``add_systems(builder, testbed)`` may add systems before the build.
-    """
-
-    def __init__(self, params: WalkingParams | None = None, meshcat=None, arms: str = "position",
-                 add_systems=None, pick_state_from_testbed: bool = True, **controller_kwargs):
-        from pr2_drake.episode import Episode
-        from pr2_drake.scenario import Scenario
-
-        self.walker = WalkingController(params, arms=arms, **controller_kwargs)
-        self.arms = None
-        if arms != "effort":
-            self.arms = ArmPosture(stiffness=self.walker.params.arm_stiffness,
-                                   damping=self.walker.params.arm_damping)
-        self._add_systems = add_systems
-        self._pick_state_from_testbed = pick_state_from_testbed
-        episode = Episode(Scenario(seconds=math.inf), self._wire, meshcat)
-        self.episode, self.testbed = episode, episode.testbed
-        self.diagram, self.simulator, self.context = (episode.diagram, episode.simulator,
-                                                      episode.context)
-        self.plant = self.testbed.plant
-        self.plant_context = episode.plant_context
-        self.walker_context = self.walker.GetMyMutableContextFromRoot(self.context)
-        self.tb_context = episode.tb_context
-        tb = self.testbed
-        self.base = self.plant.GetBodyByName(BASE_BODY, tb.robot)
-        self._force_port = self.plant.get_applied_spatial_force_input_port()
-        self.set_command(0.0, 0.0, 0.0)
-        if arms == "effort":
-            self.set_hand_targets([None, None])
-        self.push(None)
-        self.simulator.Initialize()
-
-    def _wire(self, builder: DiagramBuilder, tb) -> None:
-        builder.AddSystem(self.walker)
-        builder.Connect(tb.GetOutputPort("joint_state"), self.walker.GetInputPort("joint_state"))
-        builder.Connect(tb.GetOutputPort("body_state"), self.walker.GetInputPort("body_state"))
-        builder.Connect(self.walker.GetOutputPort("legs_command"), tb.GetInputPort("legs_command"))
-        if self.arms is None:
-            builder.Connect(self.walker.GetOutputPort("arms_command"),
-                            tb.GetInputPort("arms_command"))
-            if self._pick_state_from_testbed:
-                builder.Connect(tb.GetOutputPort("pick_state"),
-                                self.walker.GetInputPort("pick_state"))
-        else:
-            builder.AddSystem(self.arms)
-            builder.Connect(self.arms.GetOutputPort("arms_command"),
-                            tb.GetInputPort("arms_command"))
-        if self._add_systems is not None:
-            self._add_systems(builder, tb)
-
-    def set_hand_targets(self, targets) -> None:
-        """[left, right] hand targets p_WH [m] (None each: no target); arms="effort" only."""
-        self.walker.GetInputPort("hand_targets").FixValue(self.walker_context, list(targets))
-
-    def set_command(self, vx: float, vy: float, yaw_rate: float) -> None:
-        self.walker.GetInputPort("velocity_command").FixValue(
-            self.walker_context, np.array([vx, vy, yaw_rate], dtype=float))
-
-    def push(self, force_W: np.ndarray | None, body=None, p_BQ=PUSH_POINT_B) -> None:
-        """Apply a constant force [N] (in W) at the torso centre (or at point p_BQ [m] of
-        ``body``), or None to stop."""
-        forces = []
-        if force_W is not None:
-            body = self.base if body is None else body
-            f = ExternallyAppliedSpatialForce()
-            f.body_index = body.index()
-            f.p_BoBq_B = np.asarray(p_BQ, dtype=float)
-            f.F_Bq_W = SpatialForce(np.zeros(3), np.asarray(force_W, dtype=float))
-            forces.append(f)
-        self._force_port.FixValue(self.plant_context, forces)
-
-    def advance(self, t: float) -> None:
-        self.simulator.AdvanceTo(t)
-
-    @property
-    def time(self) -> float:
-        return self.context.get_time()
-
-    def base_pose(self):
-        """(p_WB (3), roll, pitch, yaw) of base_link."""
-        X = self.plant.EvalBodyPoseInWorld(self.plant_context, self.base)
-        rpy = RollPitchYaw(X.rotation())
-        return X.translation().copy(), rpy.roll_angle(), rpy.pitch_angle(), rpy.yaw_angle()
-
-    def fallen(self) -> bool:
-        p, roll, pitch, _ = self.base_pose()
-        return bool(p[2] < FALL_HEIGHT or abs(roll) > FALL_TILT or abs(pitch) > FALL_TILT)
-
-    def status(self) -> np.ndarray:
-        return self.walker.GetOutputPort("status").Eval(self.walker_context)
-
-    def run(self, duration: float, check_every: float = 0.1) -> bool:
-        """Advance by ``duration`` s; stop early and return False if the robot falls."""
-        end = self.time + duration
-        while self.time < end - 1e-9:
-            self.advance(min(end, self.time + check_every))
-            if self.fallen():
-                return False
-        return True
 
 
 @dataclass
@@ -321,7 +203,7 @@ def profile_split(seconds: float) -> dict[str, float]:
             walker += v[3]
         if filename.endswith("actuation.py") and func.startswith("_calc"):
             adapter += v[3]
-        if filename.endswith("wbqp.py") and func == "solve":
+        if filename.endswith("tracking/qp.py") and func == "solve":
             qp += v[3]
     del total
     rest = top - walker - adapter

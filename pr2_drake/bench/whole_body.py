@@ -38,7 +38,7 @@ Flat ground, discrete SAP 1 ms, the walking controller with the arms in the QP
 - reach: the hand target moved forward (and, separately, down) in 2 cm steps until the hand
   misses it by more than 2 cm or the robot falls; the farthest hand position reached, forward
   of the base and above the ground [m];
-- tick time split (walking 0.3 m/s, arms in the QP): planner, tasks, QP [ms per tick];
+- tick time split (walking 0.3 m/s, arms in the QP): planner, objectives, QP [ms per tick];
 - closed-loop real-time factor walking at 0.3 m/s, 10 s, median of ``--repeats``, this code
   against ``--baseline`` (a git ref, default the last commit before the whole-body split),
   runs interleaved (baseline, this, baseline, this, ...) in fresh processes on this machine.
@@ -58,7 +58,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pr2_drake.bench.walking import WalkingSim
+from pr2_drake.bench.rigs import WalkingSim
 from pr2_drake.grasp import PickState
 
 #: The last commit before the whole-body split (WalkingCore as one class): the "before".
@@ -256,7 +256,7 @@ def reach_limit(axis: str) -> dict:
 
 
 def tick_split(seconds: float) -> dict:
-    """Planner / tasks / QP time per control tick [ms], walking at 0.3 m/s, arms in the QP."""
+    """Planner / objectives / QP time per control tick [ms], walking at 0.3 m/s, arms in the QP."""
     sim = _sim()
     core = sim.walker.core
     sim.set_command(0.3, 0.0, 0.0)
@@ -270,7 +270,7 @@ def tick_split(seconds: float) -> dict:
     ticks = _count_ticks(sim) - ticks0
     core.timed = False
     ms = 1e3 * core.timing / max(ticks, 1)
-    return dict(planner=ms[0], tasks=ms[1], qp=ms[2], ticks=ticks,
+    return dict(planner=ms[0], objectives=ms[1], qp=ms[2], ticks=ticks,
                 rtf=seconds / wall)
 
 
@@ -280,7 +280,10 @@ def _count_ticks(sim: WalkingSim) -> int:
 
 _RTF_SNIPPET = """
 import sys, time
-from pr2_drake.bench.walking import WalkingSim
+try:
+    from pr2_drake.bench.rigs import WalkingSim
+except ImportError:  # a commit before the rigs module
+    from pr2_drake.bench.walking import WalkingSim
 sim = WalkingSim()
 sim.set_command(0.3, 0.0, 0.0)
 c, w = time.process_time(), time.perf_counter()
@@ -367,9 +370,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"reach {axis}: hand within 2 cm of its target up to {r['value']:.2f} m {what},"
               f" fell: {r['fell']}")
     s = tick_split(2.0 if q else 5.0)
-    total = s["planner"] + s["tasks"] + s["qp"]
+    total = s["planner"] + s["objectives"] + s["qp"]
     print(f"tick time (walking 0.3 m/s, arms in the QP, {s['ticks']} ticks): planner "
-          f"{s['planner']:.3f} ms, tasks {s['tasks']:.3f} ms, QP (set-up + solve) "
+          f"{s['planner']:.3f} ms, objectives {s['objectives']:.3f} ms, QP (set-up + solve) "
           f"{s['qp']:.3f} ms; total {total:.3f} ms per tick; closed-loop RTF {s['rtf']:.2f}")
     baseline = None if args.no_baseline else args.baseline
     seconds = 3.0 if q else 10.0

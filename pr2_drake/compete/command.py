@@ -13,9 +13,8 @@ import argparse
 import sys
 from typing import Any
 
+from pr2_drake.compete.isolation import ISOLATIONS
 from pr2_drake.flags import positive_float, positive_int
-
-ISOLATIONS = ("auto", "bwrap", "unshare", "none")
 
 
 def add_limit_args(p: argparse.ArgumentParser, *, memory_help: str) -> None:

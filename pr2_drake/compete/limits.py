@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass, fields
 
 from pr2_drake.compete.isolation import ISOLATIONS
+from pr2_drake.drive import AgentEnded
 
 MIN_MEMORY_MB = 512  # an agent's Python with pydrake imported maps about 400 MiB [MiB]
 
@@ -80,11 +81,7 @@ class SandboxLimits:
         return 10.0 * float(self.step_seconds)
 
 
-class AgentFault(Exception):
-    """The agent ended its episode: ``termination`` (one of the agent_* names or
-    invalid_action) and a one-line ``message``."""
-
-    def __init__(self, termination: str, message: str):
-        super().__init__(message)
-        self.termination = termination
-        self.message = message
+class AgentFault(AgentEnded):
+    """The sandbox ended the agent's episode: ``termination`` (one of the agent_* names or
+    invalid_action) and a one-line ``message``. An :class:`pr2_drake.drive.AgentEnded`, so
+    the driver (:func:`pr2_drake.drive.call_agent`) ends the episode with it."""

@@ -1,22 +1,22 @@
-"""Parameters of the jump controller, loaded from controllers/jumping.yaml.
+"""Parameters of the jump controller, loaded from params/controllers/jumping.yaml.
 
 Units: m, s, N; heights are CoM heights above the soles. (No ``from __future__ import
 annotations``: ``yaml_load_typed`` reads the field types.)
 """
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
-from pydrake.common.yaml import yaml_load_typed
-
-from pr2_drake.controllers.centroidal_mpc import MpcParams
-from pr2_drake.controllers.walking_params import TaskGains
-from pr2_drake.paths import resolve_user_path
+from pr2_drake.controllers.planning.centroidal_mpc import MpcParams
+from pr2_drake.controllers.walking_params import ObjectiveGains
+from pr2_drake.params import Params
 
 
 @dataclass
-class JumpParams:
-    """See controllers/jumping.yaml."""
+class JumpParams(Params):
+    """See params/controllers/jumping.yaml."""
 
+    FILE: ClassVar[str] = "params/controllers/jumping.yaml"
     crouch_time: float = 0.5
     crouch_hold: float = 0.1
     crouch_height: float = 0.42
@@ -35,37 +35,20 @@ class JumpParams:
     max_apex: float = 0.30
     max_speed: float = 1.0
     min_lead: float = 0.2
-    com: TaskGains = field(default_factory=lambda: TaskGains(100.0, 20.0, 300.0))
+    com: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(100.0, 20.0, 300.0))
     com_launch_weight: float = 1000.0
-    landing: TaskGains = field(default_factory=lambda: TaskGains(120.0, 30.0, 300.0))
-    landing_xy: TaskGains = field(default_factory=lambda: TaskGains(30.0, 10.0, 300.0))
+    landing: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(120.0, 30.0, 300.0))
+    landing_xy: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(30.0, 10.0, 300.0))
     joint_limit_horizon: float = 0.02
-    angular_momentum: TaskGains = field(default_factory=lambda: TaskGains(0.0, 10.0, 10.0))
+    angular_momentum: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(0.0, 10.0, 10.0))
     launch_angular_momentum_weight: float = 100.0
     launch_pelvis_scale: float = 0.03
     launch_cop_back: float = 0.03
     launch_lean_max: float = 0.04
-    soles: TaskGains = field(default_factory=lambda: TaskGains(600.0, 50.0, 1000.0))
-    soles_rot: TaskGains = field(default_factory=lambda: TaskGains(300.0, 35.0, 100.0))
+    soles: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(600.0, 50.0, 1000.0))
+    soles_rot: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(300.0, 35.0, 100.0))
     load_ramp: float = 0.02
     mpc: MpcParams = field(default_factory=MpcParams)
-
-    @staticmethod
-    def load(path: str = "controllers/jumping.yaml") -> "JumpParams":
-        filename = resolve_user_path(path, "jump controller parameters")
-        p = yaml_load_typed(schema=JumpParams, filename=str(filename))
-        p.check()
-        return p
-
-    def with_overrides(self, path: str) -> "JumpParams":
-        """A copy with the entries of a (partial) YAML file replacing these."""
-        import copy
-
-        filename = resolve_user_path(path, "jump controller parameter overrides")
-        p = yaml_load_typed(schema=JumpParams, filename=str(filename),
-                            defaults=copy.deepcopy(self))
-        p.check()
-        return p
 
     def check(self) -> None:
         if not self.crouch_height < self.takeoff_height:

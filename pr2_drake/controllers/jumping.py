@@ -1,6 +1,6 @@
 """JumpController: walking plus jumps, as a Drake LeafSystem and in process.
 
-A jump is a plan (:class:`pr2_drake.controllers.jump_planner.JumpPlanner`: crouch, launch by a
+A jump is a plan (:class:`pr2_drake.controllers.planning.jump_planner.JumpPlanner`: crouch, launch by a
 centroidal MPC, flight without contacts, landing with a CoM impedance, recovery) tracked by the
 same whole-body QP as walking (:class:`pr2_drake.controllers.whole_body.WholeBodyController`):
 between jumps the gait planner plans (stand or walk), during a jump the jump planner does, and
@@ -33,20 +33,23 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from pr2_drake.controllers.footsteps import FlatTerrain, FootstepPlanner
-from pr2_drake.controllers.gait import Phase, yaw_of
+from pr2_drake.controllers.planning.terrain import FlatTerrain
+from pr2_drake.controllers.planning.footsteps import FootstepPlanner
+from pr2_drake.controllers.frames import yaw_of
+from pr2_drake.controllers.planning.gait import Phase
 from pr2_drake.controllers.jump_params import JumpParams
-from pr2_drake.controllers.jump_planner import JumpPhase, JumpPlanner, JumpRequest
-from pr2_drake.controllers.jump_tasks import (
-    AngularMomentumTask,
-    Com3dTask,
-    ScaledPelvisTask,
-    SolesTask,
+from pr2_drake.controllers.planning.jump_planner import JumpPhase, JumpPlanner, JumpRequest
+from pr2_drake.controllers.tracking.jump_objectives import (
+    AngularMomentumObjective,
+    Com3dObjective,
+    ScaledPelvisObjective,
+    SolesObjective,
 )
-from pr2_drake.controllers.walking import WalkingController, obs_to_vectors
+from pr2_drake.controllers.walking import WalkingController
 from pr2_drake.controllers.walking_params import WalkingParams
 from pr2_drake.controllers.whole_body import COMMAND_PORT, WholeBodyController, check_command
 from pr2_drake.lifetime import weak_calc
+from pr2_drake.observation import state_vectors
 from pr2_drake.ports import EFFORT_ARMS
 
 JUMP_PORT = "jump_command"
@@ -86,12 +89,12 @@ def check_jump_command(command, params: JumpParams, port: str = JUMP_PORT):
 
 
 class JumpCore:
-    """Walking core + jump planner + the jump's tasks, one tick at a time (plain Python).
+    """Walking core + jump planner + the jump's objectives, one tick at a time (plain Python).
 
     Args:
-        core: the whole-body controller (its model, QP, contact and posture tasks are shared;
+        core: the whole-body controller (its model, QP, contact and posture objectives are shared;
             arms in position mode).
-        params: jump parameters (None: controllers/jumping.yaml).
+        params: jump parameters (None: params/controllers/jumping.yaml).
     """
 
     def __init__(self, core: WholeBodyController, params: JumpParams | None = None):
@@ -103,9 +106,9 @@ class JumpCore:
         wp = core.params
         fz_max = wp.qp.fz_max_factor * m.mass * m.gravity
         self.planner = JumpPlanner(self.params, m, wp.gait.stand_com_height, fz_max)
-        self.tasks = [Com3dTask(), AngularMomentumTask(m), ScaledPelvisTask(wp.pelvis, m),
+        self.objectives = [Com3dObjective(), AngularMomentumObjective(m), ScaledPelvisObjective(wp.pelvis, m),
                       core.contacts,
-                      SolesTask(p.soles, p.soles_rot), core.posture]
+                      SolesObjective(p.soles, p.soles_rot), core.posture]
         self.reset()
 
     def reset(self) -> None:
@@ -166,16 +169,16 @@ class JumpCore:
             self.history.append(dict(self.planner.log))
             core.planner.reset()
             return core.update(t, q, v, command, tau_arms)
-        # The jump's plan and tasks, tracked by the whole-body controller's own QP.
-        return core.track(plan, self.tasks, q, v, tau_arms, self.params.joint_limit_horizon)
+        # The jump's plan and objectives, tracked by the whole-body controller's own QP.
+        return core.track(plan, self.objectives, q, v, tau_arms, self.params.joint_limit_horizon)
 
 
 class JumpController(WalkingController):
     """The walking controller with jumps (see the module docstring).
 
     Args:
-        params: walking parameters (WalkingParams, YAML path or None: controllers/walking.yaml).
-        jump_params: jump parameters (JumpParams, YAML path or None: controllers/jumping.yaml).
+        params: walking parameters (WalkingParams, YAML path or None: params/controllers/walking.yaml).
+        jump_params: jump parameters (JumpParams, YAML path or None: params/controllers/jumping.yaml).
         footsteps, terrain: as for :class:`WalkingController`.
     """
 
@@ -186,7 +189,7 @@ class JumpController(WalkingController):
                  footsteps: FootstepPlanner | None = None, terrain: FlatTerrain | None = None):
         super().__init__(params, footsteps, terrain, arms="position")
         if jump_params is None or isinstance(jump_params, str):
-            jump_params = JumpParams.load(jump_params or "controllers/jumping.yaml")
+            jump_params = JumpParams.load(jump_params or "params/controllers/jumping.yaml")
         self.jump = JumpCore(self.core, jump_params)
         self._jump_port = self.DeclareVectorInputPort(JUMP_PORT, 4)
         self._jstate = self.DeclareDiscreteState(len(JUMP_STATUS_FIELDS))
@@ -228,7 +231,7 @@ class JumpController(WalkingController):
         an optional jump request ``jump`` = (t_takeoff, vx, vy, apex) (see the module
         docstring; ValueError naming ``jump_command`` when invalid)."""
         cmd = check_command([vx, vy, yaw_rate], COMMAND_PORT)
-        joint_state, body_state = obs_to_vectors(obs)
+        joint_state, body_state = state_vectors(obs)
         if t is None and isinstance(obs, Mapping) and obs.get("time") is not None:
             t = float(obs["time"])
             if not np.isfinite(t):

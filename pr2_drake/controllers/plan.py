@@ -1,9 +1,9 @@
-"""The plan: what the planners hand to the tracking tasks for one control tick.
+"""The plan: what the planners hand to the tracking objectives for one control tick.
 
-A plan says which contacts are active and what each task should track: CoM acceleration and
+A plan says which contacts are active and what each objective should track: CoM acceleration and
 height, pelvis orientation, the swing sole, each hand, the joint posture. Planners
-(:class:`pr2_drake.controllers.gait.GaitPlanner`, an agent's hand targets) fill it; tasks
-(:mod:`pr2_drake.controllers.tasks`) read it. Frames: W world (z up); S a sole frame; H a hand
+(:class:`pr2_drake.controllers.planning.gait.GaitPlanner`, an agent's hand targets) fill it; objectives
+(:mod:`pr2_drake.controllers.tracking.objectives`) read it. Frames: W world (z up); S a sole frame; H a hand
 sphere centre (``l_arm_sphere`` / ``r_arm_sphere``). Units: m, s, rad, N.
 """
 
@@ -41,7 +41,7 @@ class SwingReference:
 
 @dataclass
 class HandReference:
-    """A hand's desired position p_WH [m] (None: no hand task), an axis of the hand frame to
+    """A hand's desired position p_WH [m] (None: no hand objective), an axis of the hand frame to
     keep upright (``up``, e.g. a held object's vertical: None leaves the orientation free), and
     whether it is attached
     (``pick_state``): then its contact force is a QP variable within ``force_max`` [N] per
@@ -55,7 +55,7 @@ class HandReference:
 
 @dataclass
 class WholeBodyPlan:
-    """Everything the tasks track in one tick (see the module docstring).
+    """Everything the objectives track in one tick (see the module docstring).
 
     Attributes:
         contacts: per sole (0 left, 1 right).
@@ -81,3 +81,25 @@ class WholeBodyPlan:
     phase: int = 0
     stance: int = -1
     ground_z: float = 0.0
+
+
+@dataclass
+class JumpPlan(WholeBodyPlan):
+    """A plan with a CoM acceleration in 3-D and per-sole references.
+
+    Attributes:
+        com_acc: desired CoM acceleration a_WCcm [m/s^2] (W), already a feedback law.
+        com_weight: QP weight of its x, y, z rows (0: no CoM objective, e.g. in flight).
+        soles: per sole (0 left, 1 right) a reference, or None (in contact or free).
+        pelvis_scale: factor on the pelvis orientation weight (the launch lets the torso pitch
+            so that the angular momentum stays small: with both soles fixed the two conflict).
+        L_rate: desired rate of the centroidal angular momentum [N m] (W), already a feedback
+            law; L_weight: its QP weight (0: none, e.g. in flight, where it is conserved).
+    """
+
+    com_acc: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    com_weight: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    L_rate: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    L_weight: float = 0.0
+    pelvis_scale: float = 1.0  # times the pelvis orientation task's weight
+    soles: list[SwingReference | None] = field(default_factory=lambda: [None, None])

@@ -8,15 +8,15 @@ position mode around the nominal pose.
 
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.common.yaml import yaml_load_typed
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.framework import LeafSystem
 
-from pr2_drake.paths import resolve_user_path
+from pr2_drake.params import Params
 from pr2_drake.ports import (
     BODY_STATE_SIZE,
     JOINT_STATE_SIZE,
@@ -34,24 +34,22 @@ from pr2_drake.robot.params import load_robot_params
 
 
 @dataclass
-class StandingParams:
+class StandingParams(Params):
     """Gains [Nm/rad, Nm s/rad] per joint in the original order, and the update period [s]."""
 
+    FILE: ClassVar[str] = "params/controllers/standing.yaml"
     period: float = 0.002
     leg_kp: list[float] = field(default_factory=lambda: [400.0] * N_LEGS)
     leg_kd: list[float] = field(default_factory=lambda: [8.0] * N_LEGS)
     arm_kp: list[float] = field(default_factory=lambda: [60.0] * N_ARMS)
     arm_kd: list[float] = field(default_factory=lambda: [3.0] * N_ARMS)
 
-    @staticmethod
-    def load(path: str = "controllers/standing.yaml") -> "StandingParams":
-        p = yaml_load_typed(schema=StandingParams,
-                            filename=str(resolve_user_path(path, "standing controller parameters")))
+    def check(self) -> None:
         for name, n in (("leg_kp", N_LEGS), ("leg_kd", N_LEGS), ("arm_kp", N_ARMS),
                         ("arm_kd", N_ARMS)):
-            if len(getattr(p, name)) != n:
-                raise ValueError(f"{path}: {name} needs {n} values, got {len(getattr(p, name))}")
-        return p
+            if len(getattr(self, name)) != n:
+                raise ValueError(f"StandingParams: {name} needs {n} values, "
+                                 f"got {len(getattr(self, name))}")
 
 
 class StandingPolicy:

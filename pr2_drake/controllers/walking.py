@@ -3,7 +3,7 @@
 Input ports:
     ``velocity_command`` (3): vx [m/s], vy [m/s], yaw_rate [rad/s] in the robot's heading frame.
         Unconnected = stand still. NaN/inf or a wrong size raise ValueError naming the port;
-        values beyond ``limits`` in controllers/walking.yaml are clipped to them.
+        values beyond ``limits`` in params/controllers/walking.yaml are clipped to them.
     ``joint_state`` (54), ``body_state`` (13): the testbed's observations (pr2_drake.ports).
     With ``arms="effort"`` only:
     ``hand_targets`` (abstract, a list [left, right]): per hand None or a desired hand-sphere
@@ -50,7 +50,8 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, LeafSystem
 
-from pr2_drake.controllers.footsteps import FlatTerrain, FootstepPlanner
+from pr2_drake.controllers.planning.terrain import FlatTerrain
+from pr2_drake.controllers.planning.footsteps import FootstepPlanner
 from pr2_drake.controllers.walking_params import WalkingParams
 from pr2_drake.controllers.whole_body import (
     COMMAND_PORT,
@@ -61,6 +62,7 @@ from pr2_drake.controllers.whole_body import (
 )
 from pr2_drake.grasp import PickState
 from pr2_drake.lifetime import weak_calc
+from pr2_drake.observation import state_vectors
 from pr2_drake.ports import (
     BODY_STATE_SIZE,
     EFFORT_ARMS,
@@ -79,50 +81,11 @@ def _load(params: WalkingParams | str | None) -> WalkingParams:
     return WalkingParams.load(str(params))
 
 
-def obs_to_vectors(obs: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
-    """joint_state (54) and body_state (13) vectors from a PR2 observation dict.
-
-    Reads ``obs["agent"]["joint_state"][{arms,legs}_{positions,velocities}]`` (arms optional;
-    ``arms_efforts`` optional: the applied arm torques, NaN in the vector when absent) and
-    ``obs["agent"]["body_state"][world_pos, world_orient (w,x,y,z), linear_velocities,
-    angular_velocities]``.
-    """
-    try:
-        agent = obs["agent"]
-        js = agent["joint_state"]
-        bs = agent["body_state"]
-        legs_q = np.asarray(js["legs_positions"], dtype=float).reshape(-1)
-        legs_v = np.asarray(js["legs_velocities"], dtype=float).reshape(-1)
-        arms_q = np.asarray(js.get("arms_positions", np.zeros(N_ARMS)), dtype=float).reshape(-1)
-        arms_v = np.asarray(js.get("arms_velocities", np.zeros(N_ARMS)), dtype=float).reshape(-1)
-        arms_e = js.get("arms_efforts", js.get("arms_applied_effort"))
-        arms_e = (np.full(N_ARMS, np.nan) if arms_e is None
-                  else np.asarray(arms_e, dtype=float).reshape(-1))
-        pos = np.asarray(bs["world_pos"], dtype=float).reshape(-1)
-        quat = np.asarray(bs["world_orient"], dtype=float).reshape(-1)
-        lin = np.asarray(bs["linear_velocities"], dtype=float).reshape(-1)
-        ang = np.asarray(bs["angular_velocities"], dtype=float).reshape(-1)
-    except (KeyError, TypeError) as err:
-        raise ValueError(f"obs: missing or malformed observation entry: {err}") from err
-    for name, arr, n in (("legs_positions", legs_q, N_LEGS), ("legs_velocities", legs_v, N_LEGS),
-                         ("arms_positions", arms_q, N_ARMS), ("arms_velocities", arms_v, N_ARMS),
-                         ("world_pos", pos, 3), ("world_orient", quat, 4),
-                         ("linear_velocities", lin, 3), ("angular_velocities", ang, 3)):
-        if arr.shape != (n,) or not np.all(np.isfinite(arr)):
-            raise ValueError(f"obs: {name} must be {n} finite values, got {arr}")
-    if arms_e.shape != (N_ARMS,):
-        raise ValueError(f"obs: arms_efforts must be {N_ARMS} values, got {arms_e}")
-    # Effort slots: the arm efforts if the observation has them (NaN = unknown), legs unused.
-    joint_state = np.concatenate([arms_q, legs_q, arms_v, legs_v, arms_e, np.zeros(N_LEGS)])
-    body_state = np.concatenate([pos, quat, lin, ang])
-    return joint_state, body_state
-
-
 class WalkingController(LeafSystem):
     """The built-in walking controller (see the module docstring for ports and units).
 
     Args:
-        params: a WalkingParams, a path to a YAML file, or None for controllers/walking.yaml.
+        params: a WalkingParams, a path to a YAML file, or None for params/controllers/walking.yaml.
         footsteps: footstep planner (None: from the velocity command).
         terrain: terrain model of the footholds (None: flat ground).
         arms: "position" (arms held by another block) or "effort" (the QP drives them).
@@ -213,7 +176,7 @@ class WalkingController(LeafSystem):
         torques of that update.
 
         Args:
-            obs: the observation (see :func:`obs_to_vectors`); its ``"time"`` entry [s], when
+            obs: the observation (see :func:`pr2_drake.observation.state_vectors`); its ``"time"`` entry [s], when
                 present, is the simulation time.
             vx, vy, yaw_rate: velocity command in the heading frame [m/s, m/s, rad/s].
             t: simulation time [s]; overrides ``obs["time"]``. With neither, the previous
@@ -223,7 +186,7 @@ class WalkingController(LeafSystem):
             "dampings": None}``.
         """
         cmd = check_command([vx, vy, yaw_rate], COMMAND_PORT)
-        joint_state, body_state = obs_to_vectors(obs)
+        joint_state, body_state = state_vectors(obs)
         if t is None and isinstance(obs, Mapping) and obs.get("time") is not None:
             t = float(obs["time"])
             if not np.isfinite(t):

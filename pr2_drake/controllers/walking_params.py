@@ -1,4 +1,4 @@
-"""Parameters of the walking controller, loaded from controllers/walking.yaml.
+"""Parameters of the walking controller, loaded from params/controllers/walking.yaml.
 
 Units: metres, seconds, radians, newtons; gains as stiffness [1/s^2] and damping [1/s] of the
 task-space acceleration laws ``a_d = kp (x_d - x) + kd (v_d - v) + a_ff``.
@@ -7,10 +7,9 @@ task-space acceleration laws ``a_d = kp (x_d - x) + kd (v_d - v) + a_ff``.
 """
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
-from pydrake.common.yaml import yaml_load_typed
-
-from pr2_drake.paths import resolve_user_path
+from pr2_drake.params import Params
 
 
 @dataclass
@@ -125,8 +124,8 @@ class CommandLimits:
 
 
 @dataclass
-class TaskGains:
-    """Stiffness kp [1/s^2], damping kd [1/s] and QP weight of one task."""
+class ObjectiveGains:
+    """Stiffness kp [1/s^2], damping kd [1/s] and QP weight of one objective."""
 
     kp: float = 100.0
     kd: float = 20.0
@@ -169,10 +168,10 @@ class QpParams:
 class ArmParams:
     """The arms when the whole-body QP drives them (``arms_command`` in effort mode)."""
 
-    posture: TaskGains = field(default_factory=lambda: TaskGains(100.0, 20.0, 0.1))
-    hand: TaskGains = field(default_factory=lambda: TaskGains(150.0, 25.0, 100.0))
+    posture: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(100.0, 20.0, 0.1))
+    hand: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(150.0, 25.0, 100.0))
     # A hand target's "up" axis (a held object's vertical) kept vertical [1/s^2, 1/s, weight].
-    hand_upright: TaskGains = field(default_factory=lambda: TaskGains(100.0, 20.0, 200.0))
+    hand_upright: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(100.0, 20.0, 200.0))
     # ... its error (sine of the tilt) saturated at this, so a far tilt is turned gently.
     hand_upright_max_error: float = 0.2
     # Hand targets farther than this from the shoulder are pulled back onto this sphere [m].
@@ -182,43 +181,26 @@ class ArmParams:
 
 
 @dataclass
-class WalkingParams:
-    """All walking-controller parameters (see controllers/walking.yaml)."""
+class WalkingParams(Params):
+    """All walking-controller parameters (see params/controllers/walking.yaml)."""
 
+    FILE: ClassVar[str] = "params/controllers/walking.yaml"
     control_period: float = 0.004  # [s] QP rate; torques are held in between
     gait: GaitParams = field(default_factory=GaitParams)
     limits: CommandLimits = field(default_factory=CommandLimits)
     qp: QpParams = field(default_factory=QpParams)
-    com_xy: TaskGains = field(default_factory=lambda: TaskGains(30.0, 10.0, 500.0))
-    com_lateral_single_weight: float = 500.0  # CoM task weight sideways in single support
-    com_z: TaskGains = field(default_factory=lambda: TaskGains(100.0, 20.0, 100.0))
-    pelvis: TaskGains = field(default_factory=lambda: TaskGains(100.0, 20.0, 30.0))
-    swing_pos: TaskGains = field(default_factory=lambda: TaskGains(400.0, 40.0, 1000.0))
-    swing_rot: TaskGains = field(default_factory=lambda: TaskGains(200.0, 30.0, 50.0))
-    posture_legs: TaskGains = field(default_factory=lambda: TaskGains(20.0, 2.0, 0.05))
-    posture_arms: TaskGains = field(default_factory=lambda: TaskGains(100.0, 20.0, 0.0))
+    com_xy: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(30.0, 10.0, 500.0))
+    com_lateral_single_weight: float = 500.0  # CoM objective weight sideways in single support
+    com_z: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(100.0, 20.0, 100.0))
+    pelvis: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(100.0, 20.0, 30.0))
+    swing_pos: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(400.0, 40.0, 1000.0))
+    swing_rot: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(200.0, 30.0, 50.0))
+    posture_legs: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(20.0, 2.0, 0.05))
+    posture_arms: ObjectiveGains = field(default_factory=lambda: ObjectiveGains(100.0, 20.0, 0.0))
     # Arms (position mode, posture block): stiffness [Nm/rad] and damping [Nm s/rad].
     arm_stiffness: float = 60.0
     arm_damping: float = 3.0
     arms: ArmParams = field(default_factory=lambda: ArmParams())
-
-    @staticmethod
-    def load(path: str = "controllers/walking.yaml") -> "WalkingParams":
-        """Read a parameter file (relative paths also looked up in the data root)."""
-        filename = resolve_user_path(path, "walking controller parameters")
-        params = yaml_load_typed(schema=WalkingParams, filename=str(filename))
-        params.check()
-        return params
-
-    def with_overrides(self, path: str) -> "WalkingParams":
-        """A copy of these parameters with the entries of a (partial) YAML file replacing them."""
-        import copy
-
-        filename = resolve_user_path(path, "walking controller parameter overrides")
-        params = yaml_load_typed(schema=WalkingParams, filename=str(filename),
-                                 defaults=copy.deepcopy(self))
-        params.check()
-        return params
 
     def check(self) -> None:
         """Raise ValueError on inconsistent values."""

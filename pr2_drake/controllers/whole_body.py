@@ -1,4 +1,4 @@
-"""The whole-body controller: a short composition of planner, tasks and QP.
+"""The whole-body controller: a short composition of planner, objectives and QP.
 
 One control tick (:meth:`WholeBodyController.update`):
 
@@ -6,7 +6,7 @@ One control tick (:meth:`WholeBodyController.update`):
 2. the gait planner (:class:`GaitPlanner`, with a footstep planner and a terrain model passed
    in) turns the velocity command into a plan (:class:`WholeBodyPlan`): active contacts and
    references; the caller adds hand targets and which hand holds something;
-3. each tracking task (:mod:`pr2_drake.controllers.tasks`: CoM, pelvis, sole contacts, swing
+3. each tracking objective (:mod:`pr2_drake.controllers.tracking.objectives`: CoM, pelvis, sole contacts, swing
    sole, hands, posture) adds its rows to the cost;
 4. the whole-body QP (:class:`WholeBodyQp`, DAQP, built once) over all 24 velocity DoFs, the
    sole contact forces and, for a hand that holds something, the hand's contact force, returns
@@ -14,7 +14,7 @@ One control tick (:meth:`WholeBodyController.update`):
 
 Arms: ``arms="position"`` (default; the arms are held by another block, e.g.
 :class:`pr2_drake.controllers.posture.ArmPosture`, and the QP takes their torques as given)
-or ``arms="effort"`` (the QP drives the arms: posture and hand tasks, torque limits, and hand
+or ``arms="effort"`` (the QP drives the arms: posture and hand objectives, torque limits, and hand
 contact forces as variables while a hand is attached).
 
 Robot facts (mass, gravity, peak torques, joint ranges) come from the model's plant.
@@ -27,23 +27,24 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pr2_drake.controllers.footsteps import FlatTerrain, FootstepPlanner
-from pr2_drake.controllers.gait import GaitPlanner, Phase
-from pr2_drake.controllers.hand_force import HandForceEstimator
+from pr2_drake.controllers.planning.terrain import FlatTerrain
+from pr2_drake.controllers.planning.footsteps import FootstepPlanner
+from pr2_drake.controllers.planning.gait import GaitPlanner, Phase
+from pr2_drake.controllers.tracking.hand_force import HandForceEstimator
 from pr2_drake.controllers.plan import WholeBodyPlan
-from pr2_drake.controllers.tasks import (
-    ComTask,
-    HandPositionTask,
-    HandUprightTask,
-    PelvisOrientationTask,
-    PostureTask,
-    SoleContactTask,
-    SwingSoleTask,
-    TaskCost,
+from pr2_drake.controllers.tracking.objectives import (
+    ComObjective,
+    HandPositionObjective,
+    HandUprightObjective,
+    PelvisOrientationObjective,
+    PostureObjective,
+    SoleContactObjective,
+    SwingSoleObjective,
+    ObjectiveCost,
 )
 from pr2_drake.controllers.walking_params import WalkingParams
-from pr2_drake.controllers.wb_model import WholeBodyModel
-from pr2_drake.controllers.wbqp import WholeBodyQp
+from pr2_drake.controllers.model import WholeBodyModel
+from pr2_drake.controllers.tracking.qp import WholeBodyQp
 from pr2_drake.ports import N_ARMS
 from pr2_drake.robot.params import ARM_JOINTS, LEG_JOINTS
 
@@ -129,10 +130,10 @@ class TickInfo:
 
 
 class WholeBodyController:
-    """Planner + tasks + QP (see the module docstring).
+    """Planner + objectives + QP (see the module docstring).
 
     Args:
-        params: walking parameters (None: controllers/walking.yaml).
+        params: walking parameters (None: params/controllers/walking.yaml).
         footsteps: footstep planner (None: from the velocity command).
         terrain: terrain model of the footholds (None: flat).
         arms: "position" or "effort" (see the module docstring).
@@ -148,27 +149,27 @@ class WholeBodyController:
         self.model = m = WholeBodyModel()
         self.arms_driven = arms == "effort"
         self.planner = GaitPlanner(p, m, footsteps, terrain)
-        # Tasks, in the order their rows are summed.
-        self.contacts = SoleContactTask(p.qp, m)
-        self.tasks = [ComTask(p.com_xy, p.com_z, p.com_lateral_single_weight),
-                      PelvisOrientationTask(p.pelvis, m),
+        # Objectives, in the order their rows are summed.
+        self.contacts = SoleContactObjective(p.qp, m)
+        self.objectives = [ComObjective(p.com_xy, p.com_z, p.com_lateral_single_weight),
+                      PelvisOrientationObjective(p.pelvis, m),
                       self.contacts,
-                      SwingSoleTask(p.swing_pos, p.swing_rot)]
+                      SwingSoleObjective(p.swing_pos, p.swing_rot)]
         arm_gains = p.arms.posture if self.arms_driven else p.posture_arms
         n_arms, n_legs = len(m.v_arms), len(m.v_legs)
-        self.posture = PostureTask(
+        self.posture = PostureObjective(
             m, m.q_nominal[m.maps.q_joints],
             np.r_[np.full(n_arms, arm_gains.kp), np.full(n_legs, p.posture_legs.kp)],
             np.r_[np.full(n_arms, arm_gains.kd), np.full(n_legs, p.posture_legs.kd)],
             np.r_[np.full(n_arms, arm_gains.weight), np.full(n_legs, p.posture_legs.weight)])
         if self.arms_driven:
-            self.tasks += [HandPositionTask(0, p.arms.hand), HandPositionTask(1, p.arms.hand),
-                           HandUprightTask(0, p.arms.hand_upright,
+            self.objectives += [HandPositionObjective(0, p.arms.hand), HandPositionObjective(1, p.arms.hand),
+                           HandUprightObjective(0, p.arms.hand_upright,
                                            p.arms.hand_upright_max_error),
-                           HandUprightTask(1, p.arms.hand_upright,
+                           HandUprightObjective(1, p.arms.hand_upright,
                                            p.arms.hand_upright_max_error)]
-        self.tasks.append(self.posture)
-        self.cost = TaskCost(m.nv)
+        self.objectives.append(self.posture)
+        self.cost = ObjectiveCost(m.nv)
         # The QP: leg (and arm) torque limits and joint ranges from the plant.
         self.effort = m.effort[N_ARMS:]
         self.arm_effort = m.effort[:N_ARMS]
@@ -195,7 +196,7 @@ class WholeBodyController:
         self._hand_J = np.zeros((6, m.nv))
         self._hand_lo = np.zeros(6)
         self._hand_hi = np.zeros(6)
-        self.timing = np.zeros(3)  # [s] accumulated: planner, tasks, QP (when ``timed``)
+        self.timing = np.zeros(3)  # [s] accumulated: planner, objectives, QP (when ``timed``)
         self.timed = False
         self.debug = False
         self.debug_info: dict = {}
@@ -303,16 +304,16 @@ class WholeBodyController:
                 h.force_prior = self.hand_force.f[side]
         if timed:
             self.timing[0] += time.perf_counter() - t0
-        return self.track(plan, self.tasks, q, v, tau_arms)
+        return self.track(plan, self.objectives, q, v, tau_arms)
 
-    def track(self, plan: WholeBodyPlan, tasks, q: np.ndarray, v: np.ndarray,
+    def track(self, plan: WholeBodyPlan, objectives, q: np.ndarray, v: np.ndarray,
               tau_arms: np.ndarray | None = None,
               joint_limit_horizon: float | None = None) -> np.ndarray:
-        """Track a plan with a task list: the tasks' rows, then the whole-body QP (torque
+        """Track a plan with a objective list: the objectives' rows, then the whole-body QP (torque
         limits, friction, the plan's contact-force bounds, joint-limit braking within
         ``joint_limit_horizon`` [s], default ``qp.joint_limit_horizon``). The model must hold
         the measured (q, v) (:meth:`update` does this; another planner, e.g. a jump's, calls
-        ``model.update`` then this with its own plan and tasks). ``tau_arms`` as in
+        ``model.update`` then this with its own plan and objectives). ``tau_arms`` as in
         :meth:`update`. Returns the leg torques [Nm]; fills ``info`` and ``last_result``."""
         timed = self.timed
         if timed:
@@ -322,8 +323,8 @@ class WholeBodyController:
         cost = self.cost
         cost.clear()
         cost.record = self.debug
-        for task in tasks:
-            task.add_to(cost, m, plan)
+        for objective in objectives:
+            objective.add_to(cost, m, plan)
         # Arm torques: measured, or the posture block's spring-damper (position mode).
         if not self.arms_driven and (tau_arms is None or not np.all(np.isfinite(tau_arms))):
             q_arms = q[m.maps.q_joints[:len(m.v_arms)]]

@@ -85,7 +85,7 @@ def launch(options: LaunchOptions) -> int:
     Raises:
         ValueError: a bad option or folder, or a server that did not start (named).
     """
-    from pr2_drake.episode import check_output_path
+    from pr2_drake.run import check_output_path
     from pr2_drake.tasks import task_id
 
     task = task_id(options.task)

@@ -2,7 +2,7 @@
 
 :class:`ControllerServerConfig` says which controller a session runs (walking and jump
 parameters, terrain, timing); :meth:`ControllerServerConfig.for_task` gives task N's, as the
-original platform's ``taskN_controller`` (table: ``task_servers.yaml`` beside this module).
+original platform's ``taskN_controller`` (table: params/controllers/task_servers.yaml).
 :class:`WalkingSession` answers decoded requests (:mod:`pr2_drake.porting.protocol`) with the
 built-in whole-body controller (:class:`pr2_drake.controllers.jumping.JumpController`).
 
@@ -26,9 +26,10 @@ import numpy as np
 from pr2_drake.porting.protocol import JUMP_STATE, ProtocolError, parse_request
 
 #: The folder (in the data root) of the walking and jump parameter files.
-PARAMS_DIR = "controllers"
+PARAMS_DIR = "params/controllers"
 TERRAINS = ("flat", "rough", "slope", "stairs")
-TASK_SERVERS = Path(__file__).with_name("task_servers.yaml")
+#: Each task's server settings (fields of ControllerServerConfig), in the data root.
+TASK_SERVERS = f"{PARAMS_DIR}/task_servers.yaml"
 
 
 @dataclass
@@ -80,11 +81,11 @@ class ControllerServerConfig:
         i = task_id(task)
         entry = _task_table().get(i)
         if entry is None:
-            raise ValueError(f"{TASK_SERVERS.name}: no entry for task {i}")
+            raise ValueError(f"{TASK_SERVERS}: no entry for task {i}")
         known = {f.name for f in fields(ControllerServerConfig)}
         unknown = sorted(set(entry) - known)
         if unknown:
-            raise ValueError(f"{TASK_SERVERS.name}: task {i}: unknown key(s) {unknown}; "
+            raise ValueError(f"{TASK_SERVERS}: task {i}: unknown key(s) {unknown}; "
                              f"expected {sorted(known)}")
         return replace(ControllerServerConfig(task=i), **entry)
 
@@ -101,7 +102,10 @@ def param_file(name: str) -> str:
 def _task_table() -> dict[int, dict[str, Any]]:
     from pydrake.common.yaml import yaml_load_file
 
-    return {int(k): dict(v or {}) for k, v in yaml_load_file(str(TASK_SERVERS)).items()}
+    from pr2_drake.paths import data_root
+
+    table = yaml_load_file(str(data_root() / TASK_SERVERS))
+    return {int(k): dict(v or {}) for k, v in table.items()}
 
 
 @lru_cache(maxsize=None)
@@ -157,19 +161,19 @@ def build_controller(config: ControllerServerConfig):
     params, jump = _load_params(config)
     terrain, footsteps = None, None
     if config.terrain == "rough":
-        from pr2_drake.controllers.footsteps import RoughTerrain
+        from pr2_drake.controllers.planning.terrain import RoughTerrain
 
         terrain = RoughTerrain(config.rough_drop)
     elif config.terrain == "slope":
-        from pr2_drake.controllers.footsteps import SlopeTerrain
+        from pr2_drake.controllers.planning.terrain import SlopeTerrain
 
         priors = task_priors(config.task)
         goal = np.asarray(priors["goal_center"], dtype=float)
         terrain = SlopeTerrain(math.radians(float(priors["slope_angle_deg"])), goal,
                                float(goal[2]))
     elif config.terrain == "stairs":
-        from pr2_drake.controllers.terrain_model import stairs_from_priors
-        from pr2_drake.controllers.tread_steps import TreadFootstepPlanner
+        from pr2_drake.controllers.planning.terrain import stairs_from_priors
+        from pr2_drake.controllers.planning.tread_steps import TreadFootstepPlanner
 
         terrain = stairs_from_priors(task_priors(config.task))
         footsteps = TreadFootstepPlanner(params.gait, params.limits.start_threshold, terrain)

@@ -115,7 +115,7 @@ def run(args, scenario_from_args) -> int:
         raise ValueError(f"--fps must be in (0, 1000], got {args.fps}")
     scenario = scenario_from_args(args, seed=args.seed)
     times = _times(args, episode_limit(scenario))
-    from pr2_drake.episode import check_output_path
+    from pr2_drake.run import check_output_path
 
     check_output_path(args.video, "--video")
     if args.out is not None and Path(args.out).is_file():

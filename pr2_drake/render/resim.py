@@ -16,7 +16,7 @@ import numpy as np
 from pydrake.systems.framework import LeafSystem
 
 # The one import of the run path in this package.
-from pr2_drake.episode import run_episode
+from pr2_drake.run import run_episode
 
 TIME_TOLERANCE = 1e-6  # [s] a step this close before a requested time counts as at it
 

@@ -186,12 +186,25 @@ def build_urdf(params: RobotParams) -> str:
     """Return the URDF text for the given parameters (shell meshes: :func:`write_shells`)."""
     p = params.raw
     w = _UrdfWriter(p["name"])
-    torso = p["torso"]
-    legs = p["legs"]
-    arms = p["arms"]
-    foot = legs["foot"]
+    _add_torso(w, p["torso"])
+    _add_head_camera(w, p["head_camera"])
+    joints = {j.name: j for j in params.joints}
 
-    # Floating base: pelvis + trunk + head.
+    def revolute(name: str, parent: str, child: str, xyz, side_sign: float, group: str):
+        spec = joints[name]
+        w.revolute(name, parent, child, xyz, _mirror_axis(spec.axis, side_sign), spec.lower,
+                   spec.upper, spec.effort, spec.velocity,
+                   damping=p["actuators"][group]["joint_damping"],
+                   rotor_inertia=p["actuators"][group]["reflected_inertia"])
+
+    for s, sign in SIDES.items():
+        _add_leg(w, p, s, sign, revolute)
+        _add_arm(w, p, s, sign, revolute)
+    return w.finish()
+
+
+def _add_torso(w: _UrdfWriter, torso: dict) -> None:
+    """The floating base: pelvis, trunk and head."""
     base = w.link("base_link", torso["mass"], torso["com"],
                   _box_inertia(torso["mass"], torso["trunk_size"]))
     w.shape(base, "visual", _shell("trunk"), color="shell")
@@ -210,7 +223,9 @@ def build_urdf(params: RobotParams) -> str:
     w.shape(base, "collision", {"box": {"size": torso["trunk_size"]}}, torso["trunk_center"])
     w.shape(base, "collision", {"sphere": {"radius": r_head}}, torso["head_center"])
 
-    cam = p["head_camera"]
+
+def _add_head_camera(w: _UrdfWriter, cam: dict) -> None:
+    """The head camera's optical frame, fixed in base_link."""
     theta = np.radians(cam["pitch_deg"])
     # Camera optical frame C in base B: z_C forward-and-down, x_C to the robot's right.
     z_c = np.array([np.cos(theta), 0.0, -np.sin(theta)])
@@ -221,115 +236,112 @@ def build_urdf(params: RobotParams) -> str:
     w.fixed("head_camera_mount", "base_link", "head_camera", cam["position"],
             RollPitchYaw(R_BC).vector())
 
-    joints = {j.name: j for j in params.joints}
 
-    def revolute(name: str, parent: str, child: str, xyz, side_sign: float, group: str):
-        spec = joints[name]
-        w.revolute(name, parent, child, xyz, _mirror_axis(spec.axis, side_sign), spec.lower,
-                   spec.upper, spec.effort, spec.velocity,
-                   damping=p["actuators"][group]["joint_damping"],
-                   rotor_inertia=p["actuators"][group]["reflected_inertia"])
+def _add_leg(w: _UrdfWriter, p: dict, s: str, sign: float, revolute) -> None:
+    """One leg (side ``s``; ``sign`` +1 left): hip yaw -> hip roll -> hip pitch (co-located)
+    -> knee -> ankle pitch, the foot's contact spheres and the sole frame."""
+    torso, legs = p["torso"], p["legs"]
+    foot = legs["foot"]
+    hip_xyz = (0.0, sign * torso["pelvis_width"] / 2, torso["hip_offset_z"])
+    m = legs["hip_yaw_link_mass"]
+    link = w.link(f"{s}_hip_yaw_link", m, (0, 0, 0.02), _cylinder_inertia(m, 0.04, 0.06))
+    w.shape(link, "visual", {"cylinder": {"radius": 0.04, "length": 0.06}}, (0, 0, 0.02),
+            color="joint")
+    revolute(f"{s}_hip_z", "base_link", f"{s}_hip_yaw_link", hip_xyz, sign, "legs")
 
-    for s, sign in SIDES.items():
-        # Leg: hip yaw -> hip roll -> hip pitch (co-located) -> knee -> ankle pitch.
-        hip_xyz = (0.0, sign * torso["pelvis_width"] / 2, torso["hip_offset_z"])
-        m = legs["hip_yaw_link_mass"]
-        link = w.link(f"{s}_hip_yaw_link", m, (0, 0, 0.02), _cylinder_inertia(m, 0.04, 0.06))
-        w.shape(link, "visual", {"cylinder": {"radius": 0.04, "length": 0.06}}, (0, 0, 0.02),
-                color="joint")
-        revolute(f"{s}_hip_z", "base_link", f"{s}_hip_yaw_link", hip_xyz, sign, "legs")
+    m = legs["hip_roll_link_mass"]
+    link = w.link(f"{s}_hip_roll_link", m, (0, 0, 0), _sphere_inertia(m, 0.05))
+    w.shape(link, "visual", {"cylinder": {"radius": 0.045, "length": 0.09}}, (0, 0, 0),
+            (np.pi / 2, 0, 0), color="joint")
+    revolute(f"{s}_hip_x", f"{s}_hip_yaw_link", f"{s}_hip_roll_link", (0, 0, 0), sign, "legs")
 
-        m = legs["hip_roll_link_mass"]
-        link = w.link(f"{s}_hip_roll_link", m, (0, 0, 0), _sphere_inertia(m, 0.05))
-        w.shape(link, "visual", {"cylinder": {"radius": 0.045, "length": 0.09}}, (0, 0, 0),
-                (np.pi / 2, 0, 0), color="joint")
-        revolute(f"{s}_hip_x", f"{s}_hip_yaw_link", f"{s}_hip_roll_link", (0, 0, 0), sign, "legs")
+    th = legs["thigh"]
+    link = w.link(f"{s}_thigh", th["mass"], (0, 0, -th["length"] / 2),
+                  _cylinder_inertia(th["mass"], th["radius"], th["length"]))
+    w.shape(link, "visual", _shell("thigh"), color="shell")
+    w.shape(link, "collision",
+            {"cylinder": {"radius": th["radius"], "length": th["length"] - 0.06}},
+            (0, 0, -th["length"] / 2))
+    revolute(f"{s}_hip_y", f"{s}_hip_roll_link", f"{s}_thigh", (0, 0, 0), sign, "legs")
 
-        th = legs["thigh"]
-        link = w.link(f"{s}_thigh", th["mass"], (0, 0, -th["length"] / 2),
-                      _cylinder_inertia(th["mass"], th["radius"], th["length"]))
-        w.shape(link, "visual", _shell("thigh"), color="shell")
-        w.shape(link, "collision",
-                {"cylinder": {"radius": th["radius"], "length": th["length"] - 0.06}},
-                (0, 0, -th["length"] / 2))
-        revolute(f"{s}_hip_y", f"{s}_hip_roll_link", f"{s}_thigh", (0, 0, 0), sign, "legs")
+    ca = legs["calf"]
+    link = w.link(f"{s}_calf", ca["mass"], (0, 0, -ca["length"] / 2),
+                  _cylinder_inertia(ca["mass"], ca["radius"], ca["length"]))
+    w.shape(link, "visual", _shell("calf"), color="shell")
+    w.shape(link, "visual", {"sphere": {"radius": ca["radius"] * 1.15}}, (0, 0, 0),
+            color="joint")
+    w.shape(link, "collision",
+            {"cylinder": {"radius": ca["radius"], "length": ca["length"] - 0.06}},
+            (0, 0, -ca["length"] / 2))
+    revolute(f"{s}_knee", f"{s}_thigh", f"{s}_calf", (0, 0, -th["length"]), sign, "legs")
 
-        ca = legs["calf"]
-        link = w.link(f"{s}_calf", ca["mass"], (0, 0, -ca["length"] / 2),
-                      _cylinder_inertia(ca["mass"], ca["radius"], ca["length"]))
-        w.shape(link, "visual", _shell("calf"), color="shell")
-        w.shape(link, "visual", {"sphere": {"radius": ca["radius"] * 1.15}}, (0, 0, 0),
-                color="joint")
-        w.shape(link, "collision",
-                {"cylinder": {"radius": ca["radius"], "length": ca["length"] - 0.06}},
-                (0, 0, -ca["length"] / 2))
-        revolute(f"{s}_knee", f"{s}_thigh", f"{s}_calf", (0, 0, -th["length"]), sign, "legs")
+    fl, fw, fh, heel = foot["length"], foot["width"], foot["ankle_height"], foot["heel"]
+    r = foot["contact_sphere_radius"]
+    x_mid = -heel + fl / 2
+    sole_thickness = 0.03
+    link = w.link(f"{s}_foot", foot["mass"], (x_mid, 0, -fh + sole_thickness),
+                  _box_inertia(foot["mass"], (fl, fw, 2 * sole_thickness)))
+    w.shape(link, "visual", {"box": {"size": [fl, fw, sole_thickness]}},
+            (x_mid, 0, -fh + sole_thickness / 2), color="sole")
+    w.shape(link, "visual", {"cylinder": {"radius": 0.03, "length": fh}},
+            (0, 0, -fh / 2), color="joint")
+    w.shape(link, "visual", _shell("foot"), color="shell")
+    layout = foot.get("contact_layout", "corners")
+    if layout not in ("corners", "line"):
+        raise ValueError(f"legs.foot.contact_layout must be 'corners' or 'line', got {layout!r}")
+    for ix, x in enumerate((-heel + r, -heel + fl - r)):
+        if layout == "line":
+            # Heel and toe spheres on the centre line: the foot rolls about its long axis.
+            w.shape(link, "collision", {"sphere": {"radius": r}}, (x, 0.0, -fh + r),
+                    name=f"{s}_foot_contact_{'ht'[ix]}")
+            continue
+        for iy, y in enumerate((fw / 2 - r, -(fw / 2 - r))):
+            w.shape(link, "collision", {"sphere": {"radius": r}}, (x, y, -fh + r),
+                    name=f"{s}_foot_contact_{'ht'[ix]}{'lr'[iy]}")
+    revolute(f"{s}_ankle", f"{s}_calf", f"{s}_foot", (0, 0, -ca["length"]), sign, "legs")
+    w.link(f"{s}_sole")
+    w.fixed(f"{s}_sole_frame", f"{s}_foot", f"{s}_sole", (x_mid, 0, -fh))
 
-        fl, fw, fh, heel = foot["length"], foot["width"], foot["ankle_height"], foot["heel"]
-        r = foot["contact_sphere_radius"]
-        x_mid = -heel + fl / 2
-        sole_thickness = 0.03
-        link = w.link(f"{s}_foot", foot["mass"], (x_mid, 0, -fh + sole_thickness),
-                      _box_inertia(foot["mass"], (fl, fw, 2 * sole_thickness)))
-        w.shape(link, "visual", {"box": {"size": [fl, fw, sole_thickness]}},
-                (x_mid, 0, -fh + sole_thickness / 2), color="sole")
-        w.shape(link, "visual", {"cylinder": {"radius": 0.03, "length": fh}},
-                (0, 0, -fh / 2), color="joint")
-        w.shape(link, "visual", _shell("foot"), color="shell")
-        layout = foot.get("contact_layout", "corners")
-        if layout not in ("corners", "line"):
-            raise ValueError(f"legs.foot.contact_layout must be 'corners' or 'line', got {layout!r}")
-        for ix, x in enumerate((-heel + r, -heel + fl - r)):
-            if layout == "line":
-                # Heel and toe spheres on the centre line: the foot rolls about its long axis.
-                w.shape(link, "collision", {"sphere": {"radius": r}}, (x, 0.0, -fh + r),
-                        name=f"{s}_foot_contact_{'ht'[ix]}")
-                continue
-            for iy, y in enumerate((fw / 2 - r, -(fw / 2 - r))):
-                w.shape(link, "collision", {"sphere": {"radius": r}}, (x, y, -fh + r),
-                        name=f"{s}_foot_contact_{'ht'[ix]}{'lr'[iy]}")
-        revolute(f"{s}_ankle", f"{s}_calf", f"{s}_foot", (0, 0, -ca["length"]), sign, "legs")
-        w.link(f"{s}_sole")
-        w.fixed(f"{s}_sole_frame", f"{s}_foot", f"{s}_sole", (x_mid, 0, -fh))
 
-        # Arm: shoulder pitch -> shoulder roll -> shoulder yaw (co-located) -> elbow.
-        sh = torso["shoulder_offset"]
-        m = arms["shoulder_link_mass"]
-        link = w.link(f"{s}_shoulder_pitch_link", m, (0, 0, 0), _sphere_inertia(m, 0.04))
-        w.shape(link, "visual", {"sphere": {"radius": 0.045}}, (0, 0, 0), color="joint")
-        revolute(f"{s}_shoulder_y", "base_link", f"{s}_shoulder_pitch_link",
-                 (sh[0], sign * sh[1], sh[2]), sign, "arms")
-        link = w.link(f"{s}_shoulder_roll_link", m, (0, 0, 0), _sphere_inertia(m, 0.04))
-        revolute(f"{s}_shoulder_x", f"{s}_shoulder_pitch_link", f"{s}_shoulder_roll_link",
-                 (0, 0, 0), sign, "arms")
-        ua = arms["upper_arm"]
-        link = w.link(f"{s}_upper_arm", ua["mass"], (0, 0, -ua["length"] / 2),
-                      _cylinder_inertia(ua["mass"], ua["radius"], ua["length"]))
-        w.shape(link, "visual", _shell("upper_arm"), color="shell")
-        w.shape(link, "collision",
-                {"cylinder": {"radius": ua["radius"], "length": ua["length"] - 0.05}},
-                (0, 0, -ua["length"] / 2))
-        revolute(f"{s}_shoulder_z", f"{s}_shoulder_roll_link", f"{s}_upper_arm", (0, 0, 0), sign,
-                 "arms")
-        fa = arms["forearm"]
-        link = w.link(f"{s}_forearm", fa["mass"], (0, 0, -fa["length"] / 2),
-                      _cylinder_inertia(fa["mass"], fa["radius"], fa["length"]))
-        w.shape(link, "visual", _shell("forearm"), color="shell")
-        w.shape(link, "visual", {"sphere": {"radius": fa["radius"] * 1.2}}, (0, 0, 0),
-                color="joint")
-        w.shape(link, "collision",
-                {"cylinder": {"radius": fa["radius"], "length": fa["length"] - 0.06}},
-                (0, 0, -fa["length"] / 2))
-        revolute(f"{s}_elbow", f"{s}_upper_arm", f"{s}_forearm", (0, 0, -ua["length"]), sign,
-                 "arms")
-        hs = arms["hand_sphere"]
-        link = w.link(f"{s}_arm_sphere", hs["mass"], (0, 0, 0),
-                      _sphere_inertia(hs["mass"], hs["radius"]))
-        w.shape(link, "visual", {"sphere": {"radius": hs["radius"]}}, (0, 0, 0), color="hand")
-        w.shape(link, "collision", {"sphere": {"radius": hs["radius"]}}, (0, 0, 0))
-        w.fixed(f"{s}_hand_mount", f"{s}_forearm", f"{s}_arm_sphere", (0, 0, -fa["length"]))
-
-    return w.finish()
+def _add_arm(w: _UrdfWriter, p: dict, s: str, sign: float, revolute) -> None:
+    """One arm: shoulder pitch -> shoulder roll -> shoulder yaw (co-located) -> elbow, and the
+    hand sphere."""
+    torso, arms = p["torso"], p["arms"]
+    sh = torso["shoulder_offset"]
+    m = arms["shoulder_link_mass"]
+    link = w.link(f"{s}_shoulder_pitch_link", m, (0, 0, 0), _sphere_inertia(m, 0.04))
+    w.shape(link, "visual", {"sphere": {"radius": 0.045}}, (0, 0, 0), color="joint")
+    revolute(f"{s}_shoulder_y", "base_link", f"{s}_shoulder_pitch_link",
+             (sh[0], sign * sh[1], sh[2]), sign, "arms")
+    link = w.link(f"{s}_shoulder_roll_link", m, (0, 0, 0), _sphere_inertia(m, 0.04))
+    revolute(f"{s}_shoulder_x", f"{s}_shoulder_pitch_link", f"{s}_shoulder_roll_link",
+             (0, 0, 0), sign, "arms")
+    ua = arms["upper_arm"]
+    link = w.link(f"{s}_upper_arm", ua["mass"], (0, 0, -ua["length"] / 2),
+                  _cylinder_inertia(ua["mass"], ua["radius"], ua["length"]))
+    w.shape(link, "visual", _shell("upper_arm"), color="shell")
+    w.shape(link, "collision",
+            {"cylinder": {"radius": ua["radius"], "length": ua["length"] - 0.05}},
+            (0, 0, -ua["length"] / 2))
+    revolute(f"{s}_shoulder_z", f"{s}_shoulder_roll_link", f"{s}_upper_arm", (0, 0, 0), sign,
+             "arms")
+    fa = arms["forearm"]
+    link = w.link(f"{s}_forearm", fa["mass"], (0, 0, -fa["length"] / 2),
+                  _cylinder_inertia(fa["mass"], fa["radius"], fa["length"]))
+    w.shape(link, "visual", _shell("forearm"), color="shell")
+    w.shape(link, "visual", {"sphere": {"radius": fa["radius"] * 1.2}}, (0, 0, 0),
+            color="joint")
+    w.shape(link, "collision",
+            {"cylinder": {"radius": fa["radius"], "length": fa["length"] - 0.06}},
+            (0, 0, -fa["length"] / 2))
+    revolute(f"{s}_elbow", f"{s}_upper_arm", f"{s}_forearm", (0, 0, -ua["length"]), sign,
+             "arms")
+    hs = arms["hand_sphere"]
+    link = w.link(f"{s}_arm_sphere", hs["mass"], (0, 0, 0),
+                  _sphere_inertia(hs["mass"], hs["radius"]))
+    w.shape(link, "visual", {"sphere": {"radius": hs["radius"]}}, (0, 0, 0), color="hand")
+    w.shape(link, "collision", {"sphere": {"radius": hs["radius"]}}, (0, 0, 0))
+    w.fixed(f"{s}_hand_mount", f"{s}_forearm", f"{s}_arm_sphere", (0, 0, -fa["length"]))
 
 
 def default_urdf_path() -> Path:

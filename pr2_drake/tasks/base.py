@@ -1,8 +1,8 @@
 """What every task shares: its YAML spec, the episode status, and the referee base system.
 
-A task is data plus code: ``tasks/<n>_<name>.yaml`` (read into :class:`TaskSpec`) and a module in
-this package with a scene builder and a :class:`Referee` subclass, registered by id and name in
-:mod:`pr2_drake.tasks`.
+A task is data plus code: ``tasks/<n>_<name>.yaml`` (read into :class:`TaskSpec`) and a module
+with a scene builder and a :class:`Referee` subclass, named by a row of the registry
+(tasks/registry.yaml, :mod:`pr2_drake.tasks`).
 """
 
 from __future__ import annotations
@@ -104,13 +104,19 @@ class TaskSpec:
     time_step: float | None = None
 
     @staticmethod
-    def load(path) -> "TaskSpec":
+    def load(path, task_id: int | None = None, name: str | None = None) -> "TaskSpec":
+        """Read a task's YAML; ``task_id`` and ``name`` come from its registry row (a file
+        may also give them, the same)."""
         try:
             raw = yaml_load_file(str(path))
         except Exception as e:  # YAML syntax: one line naming the file
             raise ValueError(f"task file {path}: {' '.join(str(e).split())}") from None
         if not isinstance(raw, dict) or not isinstance(raw.get("rubric"), list):
             raise ValueError(f"task file {path}: expected a mapping with a 'rubric' list")
+        for key, value in (("id", task_id), ("name", name)):
+            if value is not None and raw.setdefault(key, value) != value:
+                raise ValueError(f"task file {path}: {key} {raw[key]!r} is not the registry's "
+                                 f"{value!r}")
         try:
             rubric = [RubricItem(**r) for r in raw.pop("rubric")]
             spec = TaskSpec(rubric=rubric, **raw)

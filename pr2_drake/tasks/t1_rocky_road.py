@@ -26,7 +26,7 @@ from pydrake.multibody.tree import ModelInstanceIndex
 from pr2_drake.scene import Scene, add_flat_ground
 from pr2_drake.tasks.base import EpisodeStatus, Referee, TaskDefinition, TaskSpec
 from pr2_drake.tasks.regions import Rect, add_line_marker, add_marker, region_from_yaml, rgba
-from pr2_drake.tasks.terrain import RockyRoad
+from pr2_drake.tasks.ground import RockyRoad
 
 
 def make_road(spec: TaskSpec) -> RockyRoad:

@@ -22,7 +22,7 @@ from pydrake.multibody.tree import ModelInstanceIndex
 from pr2_drake.scene import Scene, add_flat_ground
 from pr2_drake.tasks.base import EpisodeStatus, Referee, TaskDefinition, TaskSpec
 from pr2_drake.tasks.regions import Rect, add_marker, region_from_yaml, rgba
-from pr2_drake.tasks.terrain import Slope
+from pr2_drake.tasks.ground import Slope
 
 
 class SlopeReferee(Referee):

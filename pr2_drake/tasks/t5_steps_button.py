@@ -49,7 +49,7 @@ from pr2_drake.tasks.regions import (
     rgba,
     touching,
 )
-from pr2_drake.tasks.terrain import Staircase
+from pr2_drake.tasks.ground import Staircase
 
 
 class StepsButtonReferee(Referee):

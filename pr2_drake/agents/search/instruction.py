@@ -8,7 +8,7 @@
 :class:`InstructionParser` is rule-based and downloads nothing. It knows the objects, furniture
 and rooms of the task's public scene description (``tasks/6_object_search.yaml``: keys such as
 ``teddy_bear`` and labels such as "teddy bear") plus the synonyms of
-``controllers/search_language.yaml``. It reads a sentence in four steps:
+``params/agents/search_language.yaml``. It reads a sentence in four steps:
 
 1. normalise: lower case; ``_`` and ``-`` read as spaces; the original platform's
    ``_<n>_link`` suffixes ("coffeetable_9_link") and bare numbers are dropped;
@@ -37,13 +37,10 @@ keys and validates the answer against the vocabulary (an answer naming an unknow
 import json
 import re
 from dataclasses import dataclass, field
-from typing import Callable, Dict, List, Optional, Protocol
+from typing import Callable, ClassVar, Optional, Protocol
 
-from pydrake.common.yaml import yaml_load_file
+from pr2_drake.params import Params
 
-from pr2_drake.paths import resolve_user_path
-
-DEFAULT_LANGUAGE = "controllers/search_language.yaml"
 
 
 class InstructionError(ValueError):
@@ -85,32 +82,14 @@ class InstructionReader(Protocol):
 
 
 @dataclass
-class LanguageParams:
-    """Extra names (lower case) per key; see controllers/search_language.yaml."""
+class LanguageParams(Params):
+    """Extra names (lower case) per key; see params/agents/search_language.yaml."""
 
-    objects: Dict[str, List[str]] = field(default_factory=dict)
-    furniture: Dict[str, List[str]] = field(default_factory=dict)
-    rooms: Dict[str, List[str]] = field(default_factory=dict)
-    generic_furniture: List[str] = field(default_factory=lambda: ["table"])
-
-    @staticmethod
-    def load(path: str = DEFAULT_LANGUAGE) -> "LanguageParams":
-        # Plain YAML, checked here (yaml_load_typed does not build lists inside dicts).
-        data = yaml_load_file(str(resolve_user_path(path, "search language")))
-        out = LanguageParams()
-        for part in ("objects", "furniture", "rooms"):
-            entries = data.get(part) or {}
-            if not isinstance(entries, dict) or not all(
-                    isinstance(v, list) and all(isinstance(w, str) for w in v)
-                    for v in entries.values()):
-                raise ValueError(f"{path}: {part} must map keys to lists of words")
-            setattr(out, part, {str(k): list(v) for k, v in entries.items()})
-        out.generic_furniture = [str(w) for w in data.get("generic_furniture", ["table"])]
-        unknown = set(data) - {"objects", "furniture", "rooms", "generic_furniture"}
-        if unknown:
-            raise ValueError(f"{path}: unknown keys {sorted(unknown)}")
-        return out
-
+    FILE: ClassVar[str] = "params/agents/search_language.yaml"
+    objects: dict[str, list[str]] = field(default_factory=dict)
+    furniture: dict[str, list[str]] = field(default_factory=dict)
+    rooms: dict[str, list[str]] = field(default_factory=dict)
+    generic_furniture: list[str] = field(default_factory=lambda: ["table"])
 
 @dataclass(frozen=True)
 class Vocabulary:
@@ -209,8 +188,9 @@ class InstructionParser:
         self._longest = max(len(p) for p in self._lexicon)
 
     @staticmethod
-    def from_task(language: str = DEFAULT_LANGUAGE) -> "InstructionParser":
-        """A parser for task 6's scene (tasks/6_object_search.yaml)."""
+    def from_task(language: str | None = None) -> "InstructionParser":
+        """A parser for task 6's scene (tasks/6_object_search.yaml); ``language``: the
+        extra names' YAML (default :attr:`LanguageParams.FILE`)."""
         from pr2_drake.tasks import get_task
 
         return InstructionParser(Vocabulary.from_scene(get_task(6).spec.scene),

@@ -17,20 +17,18 @@ facts a competitor reads; nothing comes from the simulator. Movable objects are 
 import heapq
 import math
 from dataclasses import dataclass
-from typing import Optional
+from typing import ClassVar, Optional
 
 import cv2
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.common.yaml import yaml_load_typed
 from pydrake.systems.framework import BasicVector, LeafSystem
 
 from pr2_drake.agents.walk_to_goal import GoalPlannerParams, goal_velocity, yaw_from_quaternion
 from pr2_drake.lifetime import weak_calc
-from pr2_drake.paths import resolve_user_path
+from pr2_drake.params import Params
 from pr2_drake.ports import BODY_STATE_SIZE, P_WB, QUAT_WB
 
-DEFAULT_PARAMS = "controllers/search_navigation.yaml"
 
 
 class NoPathError(RuntimeError):
@@ -125,9 +123,10 @@ class OccupancyGrid:
 
 
 @dataclass
-class NavigationParams:
-    """See controllers/search_navigation.yaml (m, m/s, rad/s)."""
+class NavigationParams(Params):
+    """See params/agents/search_navigation.yaml (m, m/s, rad/s)."""
 
+    FILE: ClassVar[str] = "params/agents/search_navigation.yaml"
     resolution: float = 0.05
     robot_radius: float = 0.32
     lookahead: float = 0.35
@@ -139,10 +138,6 @@ class NavigationParams:
     slow_radius: float = 0.4
     turn_in_place_angle: float = 0.6
 
-    @staticmethod
-    def load(path: str = DEFAULT_PARAMS) -> "NavigationParams":
-        return yaml_load_typed(schema=NavigationParams,
-                               filename=str(resolve_user_path(path, "navigation parameters")))
 
 
 def _nearest_free(grid: OccupancyGrid, cell, max_cells: int = 40):

@@ -29,19 +29,18 @@ Other detectors (learned, VLM) plug in through :class:`ObjectFinder`.
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Optional, Protocol
+from typing import ClassVar, Optional, Protocol
 
 import cv2
 import numpy as np
-from pydrake.common.yaml import yaml_load_typed
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.sensors import CameraInfo
 
+from pr2_drake.params import Params
 from pr2_drake.paths import resolve_user_path
 from pr2_drake.ports import P_WB, Q_ARMS, Q_LEGS, QUAT_WB
 
-DEFAULT_PARAMS = "controllers/search_perception.yaml"
 HUE_BINS = 18  # 20 deg each
 SAT_MIN, VAL_MIN = 0.28, 0.12  # below: a grey pixel (no reliable hue)
 
@@ -99,9 +98,9 @@ class HeadCameraKinematics:
 
     def camera_pose_from_obs(self, obs: dict) -> RigidTransform:
         """X_WC from a PR2 observation dictionary (``obs["agent"]``)."""
-        from pr2_drake.observation import state_vectors_from_obs
+        from pr2_drake.observation import state_vectors
 
-        joint_state, body_state = state_vectors_from_obs(obs)
+        joint_state, body_state = state_vectors(obs)
         return self.camera_pose(body_state, joint_state)
 
 
@@ -208,9 +207,10 @@ def object_models_from_priors(priors: dict) -> dict[str, ObjectModel]:
 
 # -- detector ----------------------------------------------------------------------------------
 @dataclass
-class DetectorParams:
-    """See controllers/search_perception.yaml (lengths in m)."""
+class DetectorParams(Params):
+    """See params/agents/search_perception.yaml (lengths in m)."""
 
+    FILE: ClassVar[str] = "params/agents/search_perception.yaml"
     max_range: float = 4.0
     min_range: float = 0.3
     horizontal_normal_z: float = 0.93
@@ -232,10 +232,6 @@ class DetectorParams:
     flat_weight: float = 1.0
     min_score: float = 0.3
 
-    @staticmethod
-    def load(path: str = DEFAULT_PARAMS) -> "DetectorParams":
-        return yaml_load_typed(schema=DetectorParams,
-                               filename=str(resolve_user_path(path, "detector parameters")))
 
 
 @dataclass

@@ -1,0 +1,127 @@
+"""What the task-6 search sequencer knows: its parameters, its stages and its memory.
+
+(No ``from __future__ import annotations``: ``yaml_load_typed`` reads the field types.)
+"""
+
+import enum
+from dataclasses import dataclass, field
+from typing import ClassVar, List, Optional
+
+import numpy as np
+
+from pr2_drake.agents.sequencer import SequencerMemory
+from pr2_drake.params import Params
+
+HANDS = ("left_hand", "right_hand")
+
+
+@dataclass
+class SearchAgentParams(Params):
+    """See params/agents/search.yaml (m, s, deg where named)."""
+
+    FILE: ClassVar[str] = "params/agents/search.yaml"
+    period: float = 0.02
+    look_distance: float = 0.55
+    look_yaws_deg: List[float] = field(default_factory=lambda: [0.0, 30.0, -30.0])
+    look_settle: float = 0.6
+    look_frames: int = 2
+    search_margin: float = 0.25
+    pick_standoff: float = 0.12
+    pick_reach: float = 0.58
+    stage_distance: float = 0.40
+    place_standoff: float = 0.15
+    hand_lateral: float = 0.10
+    approach_radius: float = 0.12
+    approach_gain: float = 1.0
+    approach_yaw_gain: float = 1.5
+    approach_speed: float = 0.10
+    position_tolerance: float = 0.04
+    approach_timeout: float = 8.0
+    approach_accept: float = 0.12
+    yaw_tolerance_deg: float = 5.0
+    settle_time: float = 0.8
+    pre_height: float = 0.08
+    grasp_height: float = 0.05
+    grasp_offset: float = 0.12
+    grasp_margin: float = 0.04
+    grasp_elevations_deg: List[float] = field(default_factory=lambda: [55.0, 70.0, 85.0])
+    grasp_azimuths_deg: List[float] = field(
+        default_factory=lambda: [0.0, 45.0, -45.0, 90.0, -90.0, 135.0, -135.0, 180.0])
+    hand_clearance: float = 0.05
+    reach: float = 0.44
+    lift_forward: float = 0.05
+    edge_clearance: float = 0.07
+    reach_time: float = 1.5
+    pick_timeout: float = 1.2
+    pick_tries: int = 4
+    carry: List[float] = field(default_factory=lambda: [0.22, 0.14, 0.30])
+    place_inset: float = 0.17
+    place_clearance: float = -0.001
+    release_hold: float = 0.6
+    back_speed: float = 0.10
+    back_time: float = 2.0
+
+
+class Stage(enum.IntEnum):
+    NAVIGATE = 0
+    LOOK = 1
+    APPROACH = 2
+    SETTLE = 3
+    REACH = 4
+    PICK = 5
+    LIFT = 6
+    CARRY = 7
+    APPROACH_TABLE = 8
+    SETTLE_TABLE = 9
+    PLACE = 10
+    RELEASE = 11
+    RETRACT = 12
+    BACK = 13
+    DONE = 14
+    FAILED = 15
+
+
+@dataclass
+class SearchMemory(SequencerMemory):
+    """What :class:`pr2_drake.agents.search.sequencer.ObjectSearchSequencer` remembers between
+    its updates (abstract state in its Context), besides :class:`SequencerMemory`.
+
+    Attributes:
+        places: furniture still to search (None: not yet ordered); place: the one now.
+        side: outward normal (x, y) of the table side the robot stands at.
+        path: the waypoints being walked (W, m); goal: the pose goal (x, y, yaw).
+        look_k, look_tries, t_still: the heading looked along, frames taken there, since
+            when the robot stands still [s] (-1: it does not).
+        p_WO: the detected target's centre (W, m); others: other objects seen with it.
+        pick_goal: the pose to pick from; nav_then: the stage after NAVIGATE.
+        hand: the hand that picks (0 left, 1 right); hand_path, hand_t0: its waypoints and
+            their start time [s]; pick_tries: tries so far.
+        r_pick, o_pick: hand and object at the pick in the base's heading frame (m);
+        hand_over_top: the hand centre above the pick table's top (m); up_H: the held
+            object's vertical in the hand frame (None: not kept vertical).
+        failure: why the sequence FAILED ("" while it has not); log: what happened when.
+    """
+
+    stage: int = Stage.NAVIGATE
+    places: Optional[list] = None
+    place: Optional[str] = None
+    side: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0]))
+    path: Optional[list] = None
+    goal: Optional[np.ndarray] = None
+    look_k: int = 0
+    look_tries: int = 0
+    t_still: float = -1.0
+    p_WO: Optional[np.ndarray] = None
+    others: list = field(default_factory=list)
+    pick_goal: Optional[np.ndarray] = None
+    nav_then: int = Stage.LOOK
+    hand: int = 1
+    hand_path: list = field(default_factory=list)
+    hand_t0: float = 0.0
+    pick_tries: int = 0
+    r_pick: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    o_pick: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    hand_over_top: float = 0.0
+    up_H: Optional[np.ndarray] = None
+    failure: str = ""
+    log: list = field(default_factory=list)

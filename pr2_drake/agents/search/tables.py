@@ -1,0 +1,116 @@
+"""The public scene description of task 6, as the search agent reads it: tables, the side to
+stand at, where to search first, and poses relative to a table or the robot's heading.
+
+Positions in m, world frame W; a pose is (x, y, yaw) [m, m, rad]; a side of a table is its
+outward unit normal (x, y).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from pr2_drake.agents.search.instruction import Instruction
+from pr2_drake.agents.search.navigation import OccupancyGrid
+
+
+@dataclass(frozen=True)
+class Table:
+    """A table top from the public scene description: centre (x, y), size (x, y), top height."""
+
+    name: str
+    center: np.ndarray
+    size: np.ndarray
+    height: float
+
+    def side_frame(self, normal: np.ndarray):
+        """(half depth along ``normal``, unit tangent, half length along the tangent)."""
+        n = np.asarray(normal, float)
+        t = np.array([-n[1], n[0]])
+        return (float(abs(n) @ self.size) / 2, t, float(abs(t) @ self.size) / 2)
+
+    def contains(self, p, margin: float = 0.0) -> bool:
+        return bool(np.all(np.abs(np.asarray(p)[:2] - self.center) <= self.size / 2 + margin))
+
+
+def tables_from_scene(scene: dict) -> dict[str, Table]:
+    """Every furniture top of the task YAML's ``scene`` block."""
+    return {k: Table(k, np.asarray(f["center"], float), np.asarray(f["size"], float),
+                     float(f["height"])) for k, f in scene["furniture"].items()}
+
+
+def best_side(grid: OccupancyGrid, table: Table, standoff: float, radius: float) -> np.ndarray:
+    """Outward unit normal (x, y) of the table side to stand at: the long sides first, the one
+    with the most free floor in front (ray on the grid inflated by ``radius``)."""
+    g = grid.inflated(radius)
+    best, best_key = None, None
+    for n in (np.array([1.0, 0.0]), np.array([-1.0, 0.0]), np.array([0.0, 1.0]),
+              np.array([0.0, -1.0])):
+        half, _, half_len = table.side_frame(n)
+        free = 0.0
+        for d in np.arange(standoff, 2.0, 0.05):
+            if not g.free(table.center + n * (half + d)):
+                break
+            free = d
+        key = (free >= standoff + 0.2, half_len >= half, free)
+        if best_key is None or key > best_key:
+            best, best_key = n, key
+    return best
+
+
+def search_order(instr: Instruction, vocab_home: dict[str, str], furniture_room: dict[str, str],
+                 tables: dict[str, Table], destination: str, p0) -> list[str]:
+    """Furniture keys to search, most likely first (the destination is never searched)."""
+    order: list[str] = []
+    if instr.source_furniture:
+        order.append(instr.source_furniture)
+    if instr.source_room:
+        order += [f for f, r in furniture_room.items() if r == instr.source_room]
+    home = vocab_home.get(instr.target)
+    if home:
+        order.append(home)
+    rest = sorted(tables, key=lambda k: float(np.linalg.norm(tables[k].center - p0[:2])))
+    order += rest
+    out: list[str] = []
+    for k in order:
+        if k in tables and k not in out and k != destination:
+            out.append(k)
+    return out
+
+
+def pose_at(tab: Table, n: np.ndarray, along: float, standoff: float) -> np.ndarray:
+    """The pose ``standoff`` [m] out from ``tab``'s side ``n``, ``along`` [m] along that side
+    (within 0.1 m of its ends), facing the table."""
+    half, t, half_len = tab.side_frame(n)
+    along = float(np.clip(along, -half_len - 0.1, half_len + 0.1))
+    xy = tab.center + n * (half + standoff) + t * along
+    return np.array([xy[0], xy[1], math.atan2(-n[1], -n[0])])
+
+
+def heading_frame(yaw: float, err_W) -> tuple[float, float]:
+    """A horizontal vector of W in the heading frame (x ahead, y left) of heading ``yaw``."""
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return cy * err_W[0] + sy * err_W[1], -sy * err_W[0] + cy * err_W[1]
+
+
+def in_heading(p_WB, yaw: float, p_W) -> np.ndarray:
+    """p_W relative to the base in its heading frame (x ahead, y left, z up) [m]."""
+    d = np.asarray(p_W, float) - np.asarray(p_WB, float)
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2]])
+
+
+def out_from_under(p_WH, heading, tab: Table, margin: float):
+    """Where the hand goes first when it hangs below ``tab``'s top within ``margin`` of its
+    footprint: straight back along ``heading`` (unit, x-y) at its height until it is that far
+    outside (at most 0.2 m back); None when it hangs clear."""
+    if p_WH[2] >= tab.height or not tab.contains(p_WH, margin):
+        return None
+    back = np.array(p_WH, float)
+    for _ in range(10):
+        back[:2] -= 0.02 * heading
+        if not tab.contains(back, margin):
+            break
+    return back

@@ -1,0 +1,119 @@
+"""Step adjustment: where and when the swing sole lands, from the capture point (DCM).
+
+With the ZMP on the stance sole at p, the DCM xi = c + cdot / omega of the linear inverted
+pendulum diverges as xi(t) = p + (xi_now - p) exp(omega (t - t_now)). A swing sole landing at u
+at time T leaves the DCM at xi(T) - u from the new stance sole; the walk continues as planned
+when that offset equals b, the periodic offset of the planned next steps. So the ideal landing
+point for a landing time T is u*(T) = xi(T) - b.
+
+:func:`choose_step` searches the landing time over a grid (earlier or later than planned, within
+the swing-time limits) and, for each, puts the sole at u*(T) clipped to what the stance leg can
+reach (stride box in the stance sole's frame, feet never crossing). It minimises
+
+    w_x r_x^2 + w_out max(r_out, 0)^2 + w_in min(r_out, 0)^2 + w_t (T - T_plan)^2
+
+with r = u*(T) - u the part of the ideal step the leg cannot reach (x along the stance sole,
+r_out sideways, positive away from the stance sole). An outward residual leaves the DCM outside
+the new stance sole (only a crossing step could catch it), so it weighs most; an inward one
+leaves it between the feet, where the next step catches it. This is the step-location and
+step-timing adjustment of Khadiv et al. (2016) solved by enumeration: one dimension, a few
+dozen candidates, exact and deterministic.
+
+Positions are xy in W [m], times absolute [s].
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from pr2_drake.controllers.planning.footsteps import SIDE_SIGN
+from pr2_drake.controllers.walking_params import GaitParams
+
+
+@dataclass
+class StepChoice:
+    """The chosen landing: sole xy [m, W], landing time [s], and its cost terms."""
+
+    target_xy: np.ndarray
+    landing_time: float
+    cost: float
+    residual: np.ndarray  # (x along the stance sole, outward) [m], unreachable part of u*
+
+
+def reach_box(gait: GaitParams) -> tuple[float, float, float, float]:
+    """Reachable swing-sole offsets from the stance sole (its frame): x_min, x_max [m] and
+    lateral min, max [m] (away from the stance sole)."""
+    return (-gait.max_step_backward - 0.05, gait.max_step_forward + 0.05,
+            gait.recovery_min_step_width, gait.step_width + 2 * gait.max_step_lateral + 0.05)
+
+
+def choose_step(t: float, xi: np.ndarray, p_st: np.ndarray, stance: np.ndarray, stance_side: int,
+                plan_xy: np.ndarray, b: np.ndarray, heading: float, t_earliest: float,
+                t_planned: float, t_latest: float, t_current: float, gait: GaitParams,
+                omega: float) -> StepChoice:
+    """Best landing point and time for the swing sole (side ``1 - stance_side``).
+
+    Args:
+        t: now [s]. xi: DCM now (xy, W). p_st: ZMP point of the stance sole (xy, W).
+        stance: stance sole (x, y, z, yaw). plan_xy: the planned footstep (xy, W).
+        b: periodic DCM offset at the switch onto the planned footstep (xy, W).
+        heading: heading yaw [rad] (axes of the ``dcm_gain`` blend).
+        t_earliest, t_latest: landing-time window [s, absolute] (empty: keep t_current).
+        t_planned: the planned landing time [s, absolute].
+        t_current: the landing time the swing follows now (always a candidate); others cost
+            ``retime_penalty`` more (no dithering between nearly equal times).
+    """
+    g = gait
+    # Candidate landing times: the window on the timing grid, and the current time. (Plain
+    # Python on purpose: a few dozen scalars every control tick are cheaper than numpy calls.)
+    if t_latest >= t_earliest:
+        n = max(int(round((t_latest - t_earliest) / max(g.timing_grid, 1e-3))) + 1, 2)
+        step = (t_latest - t_earliest) / (n - 1)
+        times = [t_earliest + i * step for i in range(n)] + [t_current]
+    else:
+        times = [t_current]
+    px, py = float(p_st[0]), float(p_st[1])
+    ex, ey = float(xi[0]) - px, float(xi[1]) - py
+    bx, by = float(b[0]), float(b[1])
+    gx, gy = float(g.dcm_gain[0]), float(g.dcm_gain[1])
+    blend = gx != 1.0 or gy != 1.0
+    ch, sh = math.cos(heading), math.sin(heading)
+    cs, ss = math.cos(stance[3]), math.sin(stance[3])
+    sx, sy = float(stance[0]), float(stance[1])
+    sgn = SIDE_SIGN[1 - stance_side]
+    x_min, x_max, w_min, w_max = reach_box(g)
+    half_ds = 0.5 * g.double_support
+    w_x, w_out, w_in = g.step_cost_x, g.step_cost_outward, g.step_cost_inward
+    w_t, penalty = g.step_cost_timing, g.retime_penalty
+    p0x, p0y = float(plan_xy[0]), float(plan_xy[1])
+    exp = math.exp
+    best = None
+    for T in times:
+        growth = exp(omega * (T - t + half_ds))
+        # Ideal landing point u* = xi(T) - b, blended with the plan per heading-frame axis.
+        ux = px + ex * growth - bx
+        uy = py + ey * growth - by
+        if blend:
+            dx_, dy_ = ux - p0x, uy - p0y
+            hx = (ch * dx_ + sh * dy_) * gx
+            hy = (-sh * dx_ + ch * dy_) * gy
+            ux = p0x + ch * hx - sh * hy
+            uy = p0y + sh * hx + ch * hy
+        # In the stance sole's frame, clipped to the reachable box.
+        rx, ry = ux - sx, uy - sy
+        dx = cs * rx + ss * ry
+        dlat = sgn * (-ss * rx + cs * ry)
+        x = min(max(dx, x_min), x_max)
+        lat = min(max(dlat, w_min), w_max)
+        r_x, r_out = dx - x, dlat - lat
+        cost = (w_x * r_x * r_x + (w_out if r_out > 0.0 else w_in) * r_out * r_out
+                + w_t * (T - t_planned) ** 2 + (penalty if abs(T - t_current) > 1e-6 else 0.0))
+        if best is None or cost < best[0]:
+            best = (cost, T, x, lat, r_x, r_out)
+    cost, T, x, lat, r_x, r_out = best
+    y = sgn * lat
+    target = np.array([sx + cs * x - ss * y, sy + ss * x + cs * y])
+    return StepChoice(target, T, cost, np.array([r_x, r_out]))
