@@ -67,13 +67,13 @@ def resimulate(scenario, times: Sequence[float], progress: TextIO | None = None
     """
     box: list[StateRecorder] = []
 
-    def observe(builder, testbed) -> None:
+    def watch(builder, testbed) -> None:
         recorder = builder.AddNamedSystem(
             "render_state_recorder", StateRecorder(testbed.plant.num_multibody_states(), times))
         builder.Connect(testbed.GetOutputPort("plant_state"), recorder.get_input_port())
         box.append(recorder)
 
-    report = run_episode(scenario, observe=observe, progress=progress)
+    report = run_episode(scenario, watchers=watch, progress=progress)
     return report, box[0].states
 
 
