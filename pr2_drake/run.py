@@ -120,7 +120,7 @@ def run_episode(scenario: Scenario, *, meshcat: Meshcat | None = None,
     check_output_path(record_camera, "--record-camera")
     spec = agent_spec(scenario)
     if record_camera and (scenario.camera is None or not scenario.camera.enabled):
-        scenario = replace(scenario, camera=replace(scenario.camera or _task_camera(scenario),
+        scenario = replace(scenario, camera=replace(scenario.camera or task_camera(scenario),
                                                     enabled=True))
     if record and meshcat is None:
         meshcat = quiet_meshcat()
@@ -212,7 +212,7 @@ def _with_watchers(wire: Wiring | None, watchers: Wiring | None) -> Wiring | Non
     return wire_and_watch
 
 
-def _task_camera(scenario: Scenario):
+def task_camera(scenario: Scenario):
     """The camera settings the scenario's task asks for (its YAML block), or the defaults."""
     from pr2_drake.camera import CameraSettings
 
