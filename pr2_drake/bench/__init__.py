@@ -16,6 +16,8 @@
                                  force peaks, CoM and sole deviations
     pr2-drake bench speed        walking and every task's default agent: real-time factor of
                                  this code against a baseline commit, CPU time, the split
+    pr2-drake bench render       the path tracer: seconds per frame and noise against samples
+    pr2-drake bench learning     the learning envs: steps/s per level, reset time, SB3 PPO
 
 Each module has ``main(argv) -> exit status`` and its options (``pr2-drake bench NAME
 --help``). The rigs the benchmarks, tests and notebooks share are in
@@ -31,8 +33,8 @@ import importlib
 BENCHMARKS = {"sim": "sim", "camera": "camera", "startup": "startup",
               "scene-step": "scene_step", "walking": "walking", "whole-body": "whole_body",
               "jumping": "jumping", "stairs": "stairs", "perception": "perception",
-              "parser": "parser", "sandbox": "sandbox", "speed": "speed",
-              "fidelity": "fidelity"}
+              "parser": "parser", "sandbox": "sandbox", "render": "render",
+              "learning": "learning", "speed": "speed", "fidelity": "fidelity"}
 ALL = ("startup", "sim", "camera", "walking")  # ``pr2-drake bench all``
 
 
