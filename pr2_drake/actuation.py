@@ -144,6 +144,7 @@ class ActuationAdapter(LeafSystem):
         self._state_port = self.DeclareVectorInputPort("robot_state", maps.nq + maps.nv)
         self._limits = self.DeclareNumericParameter(BasicVector(np.concatenate(limits)))
         self._gains_cache = None
+        self._springs_cache = None
         n_act = self._n_act
         none = np.zeros(0, dtype=int)
         empty = ActuationLaw(np.zeros(n_act), none, none, *(np.zeros(0) for _ in range(4)))
@@ -179,17 +180,36 @@ class ActuationAdapter(LeafSystem):
         limit = np.empty(self._n_act)
         limit[self._actuators] = self.effort_limits(context)
         ff = np.zeros(self._n_act)
-        rows, qv_q, qv_v, q_d, v_d, k, d = [], [], [], [], [], [], []
+        springs = []  # (group, command) of the groups in position or velocity mode
         for g in self._group_list:
             port = g["port"]
             if not port.HasValue(context):  # neither connected nor fixed: zero effort
                 continue
-            mode, values, stiffness, damping = self._prepared(port.Eval(context), g)
-            act = g["act"]
+            cmd = port.Eval(context)
+            mode, values, _, _ = self._prepared(cmd, g)
             if mode == "effort":
-                ff[act] = values
-                continue
-            n = g["n"]
+                ff[g["act"]] = values
+            else:
+                springs.append((g, cmd))
+        # np.clip(ff, -limit, limit) bit for bit, without np.clip's dispatch (zero in the
+        # spring-damper rows).
+        effort = np.minimum(np.maximum(ff, -limit), limit)
+        value.set_value(ActuationLaw(effort, *self._spring_rows(springs, limit)))
+
+    def _spring_rows(self, springs: list, limit: np.ndarray) -> tuple:
+        """(rows, qv, target, gains, limit, neg_limit) of :class:`ActuationLaw` for the
+        groups in position or velocity mode, rebuilt only when one of their commands or the
+        limits change (a walking controller changes the legs' efforts every tick, while the
+        arms' posture command stays the same object)."""
+        cached = self._springs_cache
+        key = limit.tobytes()
+        if (cached is not None and cached[1] == key and len(cached[0]) == len(springs)
+                and all(a is cmd for a, (_, cmd) in zip(cached[0], springs))):
+            return cached[2]
+        rows, qv_q, qv_v, q_d, v_d, k, d = [], [], [], [], [], [], []
+        for g, cmd in springs:
+            mode, values, stiffness, damping = self._prepared(cmd, g)
+            act, n = g["act"], g["n"]
             rows.append(act)
             qv_q.append(self._q_of_act[act])
             qv_v.append(self._v_of_act[act])
@@ -199,15 +219,16 @@ class ActuationAdapter(LeafSystem):
             v_d.append(values if velocity else zero)
             k.append(zero if velocity else np.broadcast_to(stiffness, (n,)))
             d.append(np.broadcast_to(damping, (n,)))
-        effort = np.clip(ff, -limit, limit)  # zero in the spring-damper rows
-        if not rows:
+        if rows:
+            rows_ = np.concatenate(rows)
+            law = (rows_, np.concatenate(qv_q + qv_v), np.concatenate(q_d + v_d),
+                   np.concatenate(k + d), limit[rows_], -limit[rows_])
+        else:
             none = np.zeros(0, dtype=int)
-            value.set_value(ActuationLaw(effort, none, none, *(np.zeros(0) for _ in range(4))))
-            return
-        rows_ = np.concatenate(rows)
-        value.set_value(ActuationLaw(effort, rows_, np.concatenate(qv_q + qv_v),
-                                     np.concatenate(q_d + v_d), np.concatenate(k + d),
-                                     limit[rows_], -limit[rows_]))
+            law = (none, none, *(np.zeros(0) for _ in range(4)))
+        # The command objects are kept, so an identity match is the same command.
+        self._springs_cache = ([cmd for _, cmd in springs], key, law)
+        return law
 
     def _calc_effort(self, context, output: BasicVector) -> None:
         output.SetFromVector(self._law.Eval(context).effort)
