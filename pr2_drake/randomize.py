@@ -493,7 +493,7 @@ def _set_objects(testbed, context, plant_context, sample: PhysicsSample) -> None
             continue
         scale = sample.object_mass[body.name()]
         body.SetSpatialInertiaInBodyFrame(plant_context, _scaled_inertia(body, scale))
-        masses[g.body] = body.default_mass() * scale
+        masses[int(g.body)] = body.default_mass() * scale
         mu = sample.object_friction[body.name()]
         for gid in plant.GetCollisionGeometriesForBody(body):
             f = _friction(inspector, gid)

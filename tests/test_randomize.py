@@ -11,6 +11,7 @@ from pydrake.multibody.math import SpatialVelocity
 from pydrake.multibody.plant import CoulombFriction
 from pydrake.multibody.tree import SpatialInertia
 
+from pr2_drake.camera import CameraSettings
 from pr2_drake.controllers.standing import StandingController
 from pr2_drake.env import Env
 from pr2_drake.episode import Episode, wire_system
@@ -210,6 +211,36 @@ def test_valve_dynamics_are_randomised():
     tau = friction.GetMyContextFromRoot(episode.context).get_numeric_parameter(0)[0]
     assert tau == pytest.approx(friction.nominal_torque * p.valve["friction_torque"])
     assert p.valve["damping"] != 1.0 and p.object_mass is None
+
+
+def test_object_mass_and_friction_and_sleeping_objects_hold_still():
+    """Task 6: each object's drawn mass is in the plant (and in the weight the grasp system
+    cancels for sleeping objects: they hold exactly still), its friction in the SceneGraph."""
+    scenario = Scenario(task=6, seed=0, seconds=2.0, camera=CameraSettings(enabled=False),
+                        randomize=only("objects"))
+    episode = Episode(scenario, wire_system(StandingController()))
+    episode.initialize()
+    tb, p = episode.testbed, episode.physics
+    plant, ctx = tb.plant, episode.plant_context
+    bodies = [plant.get_body(g.body) for g in tb.scene.graspables]
+    assert sorted(p.object_mass) == sorted(b.name() for b in bodies)
+    for b in bodies:
+        assert b.get_mass(ctx) == pytest.approx(b.default_mass() * p.object_mass[b.name()])
+    episode.advance_to(1.2)
+    grasp = tb.grasp
+    assert len(grasp.sleeping(grasp.GetMyContextFromRoot(episode.context))) == len(bodies)
+    before = [plant.EvalBodyPoseInWorld(ctx, b).translation().copy() for b in bodies]
+    episode.advance_to(2.0)
+    after = [plant.EvalBodyPoseInWorld(ctx, b).translation() for b in bodies]
+    assert np.array_equal(before, after)
+    query = tb.scene_graph.get_query_output_port().Eval(
+        tb.scene_graph.GetMyContextFromRoot(episode.context))
+    gid = plant.GetCollisionGeometriesForBody(bodies[0])[0]
+    nominal = tb.scene_graph.model_inspector().GetProximityProperties(gid).GetProperty(
+        "material", "coulomb_friction").static_friction()
+    drawn = query.inspector().GetProximityProperties(gid).GetProperty(
+        "material", "coulomb_friction").static_friction()
+    assert drawn == pytest.approx(nominal * p.object_friction[bodies[0].name()])
 
 
 def test_env_exposes_the_physics_of_its_seed():
