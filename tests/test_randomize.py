@@ -64,6 +64,20 @@ def test_same_seed_same_physics_and_trajectory_other_seed_other_values():
     assert minute[0] == minute[1] != minute[2] and 7 <= len(minute[0]) <= 15
 
 
+def test_a_built_diagram_takes_another_seeds_physics():
+    """The reuse path: redraw for seed 4 on seed 3's diagram, reset the context, initialize:
+    the same physics and trajectory as a diagram built for seed 4 (flat ground: the scene
+    does not depend on the seed)."""
+    on = RandomizeSettings(enabled=True)
+    reused = standing(3, randomize=on)
+    reused.redraw_physics(4)
+    reused.context.SetTimeStateAndParametersFrom(reused.diagram.CreateDefaultContext())
+    reused.initialize()
+    reused.advance_to(0.3)
+    fresh = standing(4, randomize=on)
+    assert reused.physics == fresh.physics and state_hash(reused) == state_hash(fresh)
+
+
 def test_turning_one_kind_off_leaves_the_others_values():
     full = standing(5, seconds=0.01, randomize=RandomizeSettings(enabled=True)).physics
     part = standing(5, seconds=0.01, randomize=only("friction", "motor")).physics
@@ -241,6 +255,35 @@ def test_object_mass_and_friction_and_sleeping_objects_hold_still():
     drawn = query.inspector().GetProximityProperties(gid).GetProperty(
         "material", "coulomb_friction").static_friction()
     assert drawn == pytest.approx(nominal * p.object_friction[bodies[0].name()])
+
+
+def test_a_sandboxed_agent_gets_noisy_ports_and_never_the_physics(monkeypatch):
+    """compete: the report has the physics of the seed (as ``run`` draws it); what crosses
+    to the agent's process is the noisy observation and nothing of the draw."""
+    from pr2_drake.compete import proxy
+    from pr2_drake.compete.sandbox import SandboxLimits
+
+    sent = []
+    original = proxy.AgentProcess.request
+
+    def request(self, message, *args, **kwargs):
+        sent.append(message)
+        return original(self, message, *args, **kwargs)
+
+    monkeypatch.setattr(proxy.AgentProcess, "request", request)
+    scenario = Scenario(task=1, seed=2, seconds=0.05, control_dt=0.01,
+                        agent="pr2_drake.agents.standing:StandingAgent",
+                        randomize=RandomizeSettings(enabled=True))
+    report = proxy.run_sandboxed_episode(scenario, limits=SandboxLimits(startup_seconds=60.0))
+    episode = Episode(scenario)
+    assert report["physics"] == episode.report()["physics"]
+    assert "physics" not in repr(sent) and repr(episode.physics.friction) not in repr(sent)
+    first = next(m["ports"]["joint_state"] for m in sent if m.get("op") == "reset")
+    episode.initialize()
+    in_process = episode.testbed.GetOutputPort("joint_state").Eval(episode.tb_context)
+    assert np.array_equal(first, in_process)  # the same noise: the same key and step
+    clean = np.asarray(episode.testbed.plant.GetPositions(episode.plant_context))
+    assert not np.isin(first[:18], clean).all()
 
 
 def test_env_exposes_the_physics_of_its_seed():
