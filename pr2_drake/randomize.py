@@ -390,8 +390,6 @@ def apply_physics(testbed, context, sample: PhysicsSample) -> None:
         _set_objects(testbed, context, pc, sample)
     blocks = testbed.randomization
     if sample.motor_strength is not None:
-        from pr2_drake.randomize_systems import in_actuator_order, nominal_peaks
-
         peaks = nominal_peaks(testbed) * in_actuator_order(testbed, sample.motor_strength)
         blocks.peak.set_peaks(blocks.peak.GetMyMutableContextFromRoot(context), peaks)
     if sample.latency_steps is not None:
@@ -501,3 +499,17 @@ def _set_objects(testbed, context, plant_context, sample: PhysicsSample) -> None
                 frictions[gid] = (f.static_friction() * mu, f.dynamic_friction() * mu)
     _set_friction(testbed, context, frictions)
     testbed.grasp.set_object_masses(masses)
+
+
+def nominal_peaks(testbed) -> np.ndarray:
+    """The nominal peak torques [Nm] in the robot's actuator order."""
+    return in_actuator_order(testbed, {j.name: j.effort for j in testbed.params.joints})
+
+
+def in_actuator_order(testbed, by_joint: dict[str, float]) -> np.ndarray:
+    """Per-joint values (by name) in the robot's actuator order."""
+    from pr2_drake.robot.params import ARM_JOINTS, LEG_JOINTS
+
+    out = np.zeros(len(testbed.maps.actuators))
+    out[testbed.maps.actuators] = [by_joint[n] for n in ARM_JOINTS + LEG_JOINTS]
+    return out

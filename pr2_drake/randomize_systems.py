@@ -31,7 +31,7 @@ from pydrake.systems.primitives import Adder
 
 from pr2_drake.lifetime import weak_calc
 from pr2_drake.ports import QUAT_WB, JointGroupCommand
-from pr2_drake.randomize import PUSH_HORIZON, RandomizeSettings, max_pushes
+from pr2_drake.randomize import PUSH_HORIZON, RandomizeSettings, max_pushes, nominal_peaks
 
 _NOISE_STREAMS = {"joint_state": 1, "body_state": 2}
 
@@ -333,20 +333,6 @@ class RandomizationBlocks:
             plant.num_velocities(), v_force, capacity))
         add_to_input(builder, plant.get_applied_generalized_force_input_port(),
                      self.pushes.get_output_port())
-
-
-def nominal_peaks(testbed) -> np.ndarray:
-    """The nominal peak torques [Nm] in the robot's actuator order."""
-    return in_actuator_order(testbed, {j.name: j.effort for j in testbed.params.joints})
-
-
-def in_actuator_order(testbed, by_joint: dict[str, float]) -> np.ndarray:
-    """Per-joint values (by name) in the robot's actuator order."""
-    from pr2_drake.robot.params import ARM_JOINTS, LEG_JOINTS
-
-    out = np.zeros(len(testbed.maps.actuators))
-    out[testbed.maps.actuators] = [by_joint[n] for n in ARM_JOINTS + LEG_JOINTS]
-    return out
 
 
 def add_to_input(builder: DiagramBuilder, port: InputPort, source: OutputPort) -> None:
