@@ -158,6 +158,7 @@ class ObservationNoise(LeafSystem):
         n = len(self._sigma)
         self._period, self._stream = float(period), int(stream)
         self._quat, self._sigma_r = quaternion, float(orientation_sigma)
+        self._scratch: list = []  # a kept generator, fully reset before each draw (_normals)
         self.DeclareNumericParameter(BasicVector([0.0, 0.0]))
         self._x = self.DeclareVectorInputPort("clean", n)
         self.DeclareVectorOutputPort("noisy", n, weak_calc(self._calc))
@@ -168,25 +169,45 @@ class ObservationNoise(LeafSystem):
     def _calc(self, context, output) -> None:
         hi, lo = context.get_numeric_parameter(0).value()
         k = int(round(context.get_time() / self._period))
-        rng = np.random.Generator(np.random.Philox(key=(int(hi) << 32) | int(lo),
-                                                   counter=[k, self._stream, 0, 0]))
-        draws = rng.standard_normal(len(self._sigma))
-        y = self._x.Eval(context) + self._sigma * draws
+        draws = _normals(self._scratch, (int(hi) << 32) | int(lo), (k, self._stream),
+                         len(self._sigma))
+        x = self._x.Eval(context)
+        y = x + self._sigma * draws
         if self._quat is not None:
             i = self._quat
-            y[i:i + 4] = _turned(self._x.Eval(context)[i:i + 4], self._sigma_r * draws[i:i + 3])
+            y[i:i + 4] = _turned(x[i:i + 4], self._sigma_r * draws[i:i + 3])
         output.SetFromVector(y)
+
+
+def _normals(scratch: list, key: int, counter: tuple[int, int], n: int) -> np.ndarray:
+    """n standard normals from Philox(key, counter): the same as a fresh
+    ``Generator(Philox(key=key, counter=[*counter, 0, 0]))`` would draw, by resetting a
+    kept generator's whole state (twice as fast as making one)."""
+    if not scratch or scratch[0] != key:
+        bits = np.random.Philox(key=key)
+        scratch[:] = [key, bits, np.random.Generator(bits)]
+    bits = scratch[1]
+    state = bits.state
+    state["state"]["counter"][:] = (counter[0], counter[1], 0, 0)
+    state["buffer_pos"], state["has_uint32"], state["uinteger"] = 4, 0, 0
+    bits.state = state
+    return scratch[2].standard_normal(n)
 
 
 def _turned(q: np.ndarray, r: np.ndarray) -> np.ndarray:
     """The unit quaternion q (w, x, y, z) composed with the rotation vector r [rad] (body)."""
-    angle = float(np.linalg.norm(r))
+    rx, ry, rz = float(r[0]), float(r[1]), float(r[2])
+    angle = math.sqrt(rx * rx + ry * ry + rz * rz)
     if angle == 0.0:
-        return q.copy()
-    w2, v2 = math.cos(angle / 2), np.sin(angle / 2) * r / angle
-    w1, v1 = q[0], q[1:4]
-    out = np.concatenate([[w1 * w2 - v1 @ v2], w1 * v2 + w2 * v1 + np.cross(v1, v2)])
-    return out / np.linalg.norm(out)
+        return np.array(q, float)
+    c, s = math.cos(angle / 2), math.sin(angle / 2) / angle
+    bx, by, bz = s * rx, s * ry, s * rz
+    w, x, y, z = (float(v) for v in q)
+    out = np.array([w * c - x * bx - y * by - z * bz,
+                    w * bx + x * c + y * bz - z * by,
+                    w * by - x * bz + y * c + z * bx,
+                    w * bz + x * by - y * bx + z * c])
+    return out / math.sqrt(float(out @ out))
 
 
 class BasePushes(LeafSystem):
