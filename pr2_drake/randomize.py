@@ -73,6 +73,7 @@ import numpy as np
 # Streams of the kinds (spawn keys): fixed forever, so a seed's values never move.
 _STREAM = 0xD12
 _KINDS = ("friction", "mass", "motor", "joints", "objects", "latency", "noise", "pushes")
+MAX_LATENCY = 0.5  # [s] longest command delay (the delay buffer holds that many steps)
 PUSH_HORIZON = 600.0  # [s] pushes are drawn up to this time when an episode has no limit
 FOOT_BODIES = ("l_foot", "r_foot")
 
@@ -196,7 +197,10 @@ class RandomizeSettings:
                 if f.name == "enabled":
                     _boolean(name, value)
                 elif isinstance(value, list):
-                    _range(name, value, positive=kind not in ("latency",))
+                    _range(name, value, positive=kind != "latency")
+                    if kind == "latency" and value[1] > MAX_LATENCY:
+                        raise ValueError(f"{name} must end at most {MAX_LATENCY:g} s, got "
+                                         f"{value!r}")
                 else:
                     _non_negative(name, value)
 

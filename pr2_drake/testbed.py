@@ -1,7 +1,8 @@
 """build_testbed(): the whole testbed as one Drake Diagram with the PR2 port contract.
 
 Inside: MultibodyPlant (discrete SAP) + SceneGraph, the task scene, KUAVO, the actuation adapter,
-the grasp system, the head RGB-D camera (optional), the task referee (when a task is given) and,
+the grasp system, the head RGB-D camera (optional), the task referee (when a task is given),
+the domain randomisation's blocks (when on: :mod:`pr2_drake.randomize_systems`) and,
 optionally, a MeshcatVisualizer.
 
 Input ports:  ``arms_command``, ``legs_command`` (JointGroupCommand), ``pick`` (str),

@@ -297,6 +297,7 @@ def test_env_exposes_the_physics_of_its_seed():
 @pytest.mark.parametrize("override, field", [
     ("randomize.friction.range=[-0.1, 1.0]", "randomize.friction.range"),
     ("randomize.latency.range=[0.02, 0.01]", "randomize.latency.range"),
+    ("randomize.latency.range=[0.0, 2.0]", "randomize.latency.range"),
     ("randomize.pushes.force=[30]", "randomize.pushes.force"),
     ("randomize.noise.joint_velocity=-1", "randomize.noise.joint_velocity"),
     ("randomize.mass.enabled=3", "randomize.mass.enabled"),
