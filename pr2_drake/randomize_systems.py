@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import copy
 import math
+import weakref
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -74,7 +75,7 @@ class CommandDelay(LeafSystem):
             self._groups.append((port, state, zero))
             self.DeclareAbstractOutputPort(
                 name, lambda: AbstractValue.Make(JointGroupCommand()),
-                weak_calc(getattr(self, f"_calc_{len(self._groups) - 1}")))
+                _weak_group_calc(self, len(self._groups) - 1))
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update)
         self.DeclareInitializationUnrestrictedUpdateEvent(self._fill)
 
@@ -108,11 +109,17 @@ class CommandDelay(LeafSystem):
         else:
             output.set_value(items[steps - 1])
 
-    def _calc_0(self, context, output) -> None:
-        self._delayed(context, output, 0)
 
-    def _calc_1(self, context, output) -> None:
-        self._delayed(context, output, 1)
+
+def _weak_group_calc(delay: CommandDelay, group: int):
+    """The output calc of one group's delayed command, holding its system weakly (see
+    :func:`pr2_drake.lifetime.weak_calc`)."""
+    ref = weakref.ref(delay)
+
+    def calc(context, output):
+        ref()._delayed(context, output, group)
+
+    return calc
 
 
 class PeakTorque(LeafSystem):

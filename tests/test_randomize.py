@@ -311,3 +311,15 @@ def test_bad_ranges_name_the_field(override, field):
 def test_unknown_fields_are_named():
     with pytest.raises(ScenarioError, match="frcition"):
         load_scenario(None, overrides=["randomize.frcition.range=[0.5, 1.0]"])
+
+
+def test_a_randomised_testbed_is_collected():
+    """The randomisation's blocks close no invisible cycle (pr2_drake.lifetime)."""
+    import gc
+    import weakref
+
+    episode = standing(0, seconds=0.01, task=2, randomize=RandomizeSettings(enabled=True))
+    ref = weakref.ref(episode.testbed)
+    del episode
+    gc.collect()
+    assert ref() is None
