@@ -30,9 +30,9 @@ Why these defaults. Friction, mass/CoM, motor strength, valve and latency: the r
 learning issue (28). Joint damping is a viscous coefficient that real gearboxes change by tens
 of percent with temperature and lubricant, and identification rarely pins it better than a
 factor of 2: x 0.5-1.5. The armature is the rotor inertia times the squared gear ratio, from the
-motor's datasheet: +-20 % covers datasheet tolerance and the unmodelled gear stages (below
--20 % the actuation's stable-gain caps, computed once from the nominal inertia, lose their
-margin). Object mass and friction: the valve's +-30 %. Noise (standard deviations): encoders
+motor's datasheet: +-20 % covers datasheet tolerance and the unmodelled gear stages, and keeps
+the actuation's stable-gain caps (I/dt, I/dt^2 from the nominal joint inertia I) stable: at
+0.8 I (links 0.9) the capped damper's d dt / I is at most 1.25, under the explicit scheme's 2. Object mass and friction: the valve's +-30 %. Noise (standard deviations): encoders
 0.001 rad (a few counts of a 13-bit absolute encoder plus backlash) and 0.05 rad/s (encoder
 differences at 1 kHz, filtered); IMU attitude 0.005 rad (0.3 deg, a MEMS AHRS's roll/pitch
 accuracy), gyro 0.01 rad/s; the base's estimated position 0.002 m and velocity 0.02 m/s (a
