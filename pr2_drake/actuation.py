@@ -33,9 +33,9 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import (
     BasicVector,
     DiagramBuilder,
-    InputPort,
     InputPortIndex,
     LeafSystem,
+    OutputPort,
 )
 from pydrake.systems.primitives import PortSwitch
 
@@ -97,6 +97,8 @@ class ActuationAdapter(LeafSystem):
         default_gains: {group: (stiffness, damping)} used when a command carries none.
         gain_limits: {group: (max_stiffness, max_damping)} per-joint arrays (original order)
             that keep the explicit spring-damper stable; None = no cap.
+        effort_scale: clamp at this multiple of the peak torques (a domain randomisation's
+            strongest motor, :mod:`pr2_drake.randomize_systems`; its own clamp follows).
     """
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
@@ -107,6 +109,7 @@ class ActuationAdapter(LeafSystem):
         maps: KuavoMaps,
         default_gains: dict[str, tuple[float, float]],
         gain_limits: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
+        effort_scale: float = 1.0,
     ):
         super().__init__()
         self._groups = {}
@@ -127,7 +130,7 @@ class ActuationAdapter(LeafSystem):
                 damping=np.minimum(float(damping), d_max),
                 k_max=np.asarray(k_max, dtype=float),
                 d_max=np.asarray(d_max, dtype=float),
-                limit=params.effort_limits(group),
+                limit=params.effort_limits(group) * effort_scale,
                 warned=False,
                 n=n,
             )
@@ -313,10 +316,10 @@ class ActuationAdapter(LeafSystem):
         return capped
 
 
-def add_actuation(builder: DiagramBuilder, adapter: ActuationAdapter,
-                  actuation_input: InputPort) -> PortSwitch:
-    """Wire ``adapter`` (already in ``builder``) to the plant's ``actuation_input`` through a
-    PortSwitch (C++) that forwards the cached efforts or the per-step spring-damper."""
+def add_actuation(builder: DiagramBuilder, adapter: ActuationAdapter) -> OutputPort:
+    """Add a PortSwitch (C++) that forwards ``adapter``'s (already in ``builder``) cached
+    efforts or its per-step spring-damper; returns the switch's output, the plant's actuation
+    [Nm] in its actuator order."""
     size = adapter.GetOutputPort("effort_actuation").size()
     switch = builder.AddNamedSystem("actuation_switch", PortSwitch(size))
     for name, index in (("effort", EFFORT_SOURCE), ("spring", SPRING_SOURCE)):
@@ -325,5 +328,4 @@ def add_actuation(builder: DiagramBuilder, adapter: ActuationAdapter,
         builder.Connect(adapter.GetOutputPort(f"{name}_actuation"), port)
     builder.Connect(adapter.GetOutputPort("actuation_source"),
                     switch.get_port_selector_input_port())
-    builder.Connect(switch.get_output_port(), actuation_input)
-    return switch
+    return switch.get_output_port()

@@ -15,6 +15,7 @@ Example (see ``scenarios/valve_seed7.yaml``)::
     seconds: 30            # stop earlier than the task's limit
     plant: {time_step: 0.002, contact_approximation: similar}
     sleep: {enabled: true, rest_time: 0.5}   # resting free objects sleep (task 6)
+    randomize: {enabled: false}   # domain randomisation from the seed (pr2_drake.randomize)
     camera: {enabled: true, width: 320, height: 240, fps: 10}
     limits: {max_speed: 100.0}
 
@@ -31,6 +32,7 @@ from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 
 from pr2_drake.camera import CameraSettings
 from pr2_drake.paths import resolve_user_path
+from pr2_drake.randomize import RandomizeSettings
 from pr2_drake.scene import StartPose
 from pr2_drake.sleep import SleepSettings
 from pr2_drake.tasks.base import FALL_HEIGHT
@@ -102,6 +104,8 @@ class Scenario:
         limits: fall height without a task and the divergence bounds.
         sleep: when resting free objects sleep (no contacts computed until something comes
             near; :mod:`pr2_drake.sleep`); ``sleep: {enabled: false}`` turns it off.
+        randomize: domain randomisation (:mod:`pr2_drake.randomize`), off by default: physics,
+            latency, observation noise and pushes drawn from the seed.
     """
 
     task: typing.Union[int, str, None] = None
@@ -117,6 +121,7 @@ class Scenario:
     start: typing.Optional[StartPose] = None
     limits: EpisodeLimits = field(default_factory=EpisodeLimits)
     sleep: SleepSettings = field(default_factory=SleepSettings)
+    randomize: RandomizeSettings = field(default_factory=RandomizeSettings)
 
     def validate(self) -> None:
         """Raise :class:`ScenarioError` naming the first bad field."""
@@ -141,6 +146,7 @@ class Scenario:
             _positive(f"limits.{name}", getattr(self.limits, name))
         try:
             self.sleep.validate()
+            self.randomize.validate()
             config = self.testbed_config()
             config.validate()
         except ValueError as e:
@@ -156,6 +162,7 @@ class Scenario:
             task=self.task, seed=int(self.seed), time_step=p.time_step,
             contact_approximation=p.contact_approximation, contact_model=p.contact_model,
             camera=self.camera, start=self.start,
+            randomize=self.randomize if self.randomize.enabled else None,
         )
 
     def time_limit(self, task_time_limit: typing.Optional[float]) -> float:

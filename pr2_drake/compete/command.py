@@ -69,6 +69,28 @@ def add_compete_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ray-address", metavar="ADDR",
                    help="with --backend ray: a running cluster (e.g. ray://head:10001, auto); "
                         "default: a local Ray with --jobs CPUs")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="domain randomisation for every episode, e.g. --set "
+                        "randomize.enabled=true (repeatable; randomize.* keys only)")
+
+
+def randomize_from_sets(sets: list[str]) -> Any:
+    """compete's ``--set`` overrides -> the episodes' ``RandomizeSettings`` (None: off).
+
+    Raises:
+        ValueError: a key outside ``randomize.``, or one the scenario refuses (named).
+    """
+    for item in sets:
+        if not item.split("=", 1)[0].strip().startswith("randomize."):
+            raise ValueError(f"--set {item}: compete takes randomize.* keys only (the "
+                             f"submissions and the flags set the rest of each episode)")
+    if not sets:
+        return None
+    from pr2_drake.scenario import load_scenario
+
+    scenario = load_scenario(None, overrides=sets)
+    scenario.validate()
+    return scenario.randomize if scenario.randomize.enabled else None
 
 
 def cmd_compete(args, seeds: list[int]) -> int:
@@ -76,9 +98,10 @@ def cmd_compete(args, seeds: list[int]) -> int:
 
     tasks = parse_tasks(args.tasks)
     limits = limits_from_args(args)
+    randomize = randomize_from_sets(args.set)
     rows = run_competition(args.submissions, tasks, seeds, args.out, jobs=args.jobs,
                            seconds=args.seconds, limits=limits, backend=args.backend,
-                           ray_address=args.ray_address)
+                           ray_address=args.ray_address, randomize=randomize)
     print(f"{len(rows)} episodes in {args.out}/results.json and results.csv; "
           f"`pr2-drake leaderboard {args.out}` ranks them")
     return 0

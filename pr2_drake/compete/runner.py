@@ -13,6 +13,11 @@ link). Results go to ``OUT/episodes.jsonl`` as each episode ends, each row with 
 again; a row without a valid MAC is), then ``OUT/results.json`` and ``OUT/results.csv`` (one
 row per episode). Only the harness writes them, from outside every sandbox.
 
+Domain randomisation (``randomize``: the scenario's section, :mod:`pr2_drake.randomize`; the
+CLI's ``--set randomize.enabled=true``) is the same for every submission: each episode's
+physics is drawn from its seed, reported in its row as ``physics``, and never sent to the
+sandbox.
+
 Backends (``jobs`` episodes at once on either): ``local`` runs episodes in this process or a
 pool of spawned processes; ``ray`` sends each episode as a Ray task (:func:`run_job`, the same
 function: the episode's agent is still sandboxed in a child process of the worker) to a local
@@ -28,7 +33,7 @@ import json
 import os
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, TextIO
 
@@ -138,6 +143,7 @@ class Job:
     seconds: float | None
     limits: SandboxLimits
     hide: tuple[str, ...] = ()
+    randomize: Any = None  # a RandomizeSettings, or None: the scenario's default (off)
 
     @property
     def key(self) -> tuple[str, int, int]:
@@ -152,6 +158,8 @@ def run_job(job: Job) -> dict[str, Any]:
     spec = job.submission.agent_for(job.task)
     scenario = Scenario(task=job.task, seed=job.seed, agent=spec, seconds=job.seconds,
                         agent_params=dict(job.submission.agent_params))
+    if job.randomize is not None:
+        scenario.randomize = job.randomize
     start = time.perf_counter()
     try:
         report = run_sandboxed_episode(scenario, submission=job.submission.folder,
@@ -176,10 +184,13 @@ def run_competition(root: str | Path, tasks: Iterable[int], seeds: Iterable[int]
                     out: str | Path, *, jobs: int = 1, seconds: float | None = None,
                     limits: SandboxLimits | None = None,
                     progress: TextIO | None = sys.stderr, backend: str = "local",
-                    ray_address: str | None = None) -> list[dict[str, Any]]:
+                    ray_address: str | None = None,
+                    randomize: Any = None) -> list[dict[str, Any]]:
     """Run (or resume) a competition; returns all rows and writes the results files.
 
     Args:
+        randomize: the episodes' domain randomisation (a
+            :class:`pr2_drake.randomize.RandomizeSettings`; None: off).
         backend: "local" (processes here) or "ray" (Ray tasks; see the module docstring).
         ray_address: with ``backend="ray"``, a running cluster's address (None: start a local
             Ray with ``jobs`` CPUs for this run).
@@ -208,7 +219,7 @@ def run_competition(root: str | Path, tasks: Iterable[int], seeds: Iterable[int]
     key = ledger.run_key(out)
     done, rejected = ledger.read_rows(log, key)
     hide = tuple(str(p.resolve()) for p in (Path(root), out))
-    todo = [Job(s, t, seed, seconds, limits, hide) for s in subs for t in tasks for seed in seeds
+    todo = [Job(s, t, seed, seconds, limits, hide, randomize) for s in subs for t in tasks for seed in seeds
             if s.agent_for(t) is not None]
     todo = [j for j in todo if j.key not in done]
     say = (lambda text: print(text, file=progress, flush=True)) if progress else (lambda _: 0)
@@ -234,7 +245,8 @@ def run_competition(root: str | Path, tasks: Iterable[int], seeds: Iterable[int]
     write_results(rows, out, meta={"submissions": [s.name for s in subs], "tasks": list(tasks),
                                    "seeds": list(seeds), "seconds": seconds,
                                    "limits": vars(limits), "isolation": note,
-                                   "trust_submissions": limits.trust})
+                                   "trust_submissions": limits.trust,
+                                   "randomize": None if randomize is None else asdict(randomize)})
     return rows
 
 

@@ -4,8 +4,8 @@ Scene: a red hand wheel (0.54 m across, horizontal, axis vertical) on a revolute
 world, on a grey stem, at hand height for KUAVO. The rim (a ring of short cylinders), spokes and
 hub collide with the robot, so pushing the wheel with the arm's distal end turns it. Resistance
 is the joint's viscous damping (Drake joint damping) plus a Coulomb-like torque
-``-friction_torque * tanh(w / friction_speed)`` (:func:`add_valve_friction`, Drake's C++
-systems) on the plant's applied generalized force input (our choice: Drake's discrete solver
+``-friction_torque * tanh(w / friction_speed)`` (:class:`ValveFriction`; the torque a Context
+parameter, which the domain randomisation draws) on the plant's applied generalized force input (our choice: Drake's discrete solver
 has no joint Coulomb friction; the smoothed torque is explicit but its slope is far below what
 destabilises the wheel's inertia at the 2 ms step).
 
@@ -34,11 +34,10 @@ from pydrake.multibody.tree import (
     SpatialInertia,
     UnitInertia,
 )
-from pydrake.symbolic import Variable, tanh
-from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import MatrixGain, SymbolicVectorSystem
+from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
 
 from pr2_drake.grasp import Graspable
+from pr2_drake.lifetime import weak_calc
 from pr2_drake.scene import Scene, add_flat_ground
 from pr2_drake.tasks.base import EpisodeStatus, Referee, TaskDefinition
 from pr2_drake.tasks.regions import add_marker, region_from_yaml, rgba
@@ -46,31 +45,38 @@ from pr2_drake.tasks.regions import add_marker, region_from_yaml, rgba
 VALVE_FRICTION = CoulombFriction(0.8, 0.6)
 
 
-def add_valve_friction(builder: DiagramBuilder, plant: MultibodyPlant, v_index: int,
-                       torque: float, speed: float) -> SymbolicVectorSystem:
-    """Coulomb-like joint friction tau = -torque tanh(w / speed) [Nm] on the velocity w
-    [rad/s] of index ``v_index``, into the plant's applied generalized force input. Drake's
-    C++ systems evaluate it at every physics step (no Python there): a MatrixGain selects w
-    from the plant state, a SymbolicVectorSystem computes tau, a MatrixGain puts it in place.
-    Returns the friction system ("valve_friction")."""
-    if torque < 0 or speed <= 0:
-        raise ValueError(f"valve friction needs torque >= 0 and speed > 0, got {torque}, "
-                         f"{speed}")
-    nq, nv = plant.num_positions(), plant.num_velocities()
-    select = np.zeros((1, nq + nv))
-    select[0, nq + v_index] = 1.0
-    place = np.zeros((nv, 1))
-    place[v_index, 0] = 1.0
-    w = Variable("w")
-    friction = builder.AddNamedSystem("valve_friction", SymbolicVectorSystem(
-        input=[w], output=[-float(torque) * tanh(w / float(speed))]))
-    speed_in = builder.AddNamedSystem("valve_speed", MatrixGain(select))
-    force_out = builder.AddNamedSystem("valve_friction_force", MatrixGain(place))
-    builder.Connect(plant.get_state_output_port(), speed_in.get_input_port())
-    builder.Connect(speed_in.get_output_port(), friction.get_input_port())
-    builder.Connect(friction.get_output_port(), force_out.get_input_port())
-    builder.Connect(force_out.get_output_port(), plant.get_applied_generalized_force_input_port())
-    return friction
+class ValveFriction(LeafSystem):
+    """Coulomb-like joint friction: tau = -tau_c tanh(w / w_s) on one velocity index.
+
+    Input ``plant_state`` (full [q; v]); output ``generalized_force`` (nv) for the plant's
+    applied generalized force input.
+    """
+
+    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
+    def __init__(self, plant: MultibodyPlant, v_index: int, torque: float, speed: float):
+        super().__init__()
+        if torque < 0 or speed <= 0:
+            raise ValueError(f"valve friction needs torque >= 0 and speed > 0, got {torque}, "
+                             f"{speed}")
+        self._nq, self._nv = plant.num_positions(), plant.num_velocities()
+        self._iv, self._speed = v_index, float(speed)
+        self.nominal_torque = float(torque)
+        self._tau = self.DeclareNumericParameter(BasicVector([self.nominal_torque]))
+        self._x = self.DeclareVectorInputPort("plant_state", self._nq + self._nv)
+        self.DeclareVectorOutputPort("generalized_force", self._nv, weak_calc(self._calc))
+
+    def set_torque(self, context, torque: float) -> None:
+        """The Coulomb torque tau_c [Nm] in ``context`` (this system's; a parameter, so a
+        domain randomisation sets it per episode)."""
+        context.get_mutable_numeric_parameter(self._tau).SetAtIndex(0, float(torque))
+
+    def _calc(self, context, output) -> None:
+        w = self._x.Eval(context)[self._nq + self._iv]
+        f = np.zeros(self._nv)
+        tau = context.get_numeric_parameter(self._tau).GetAtIndex(0)
+        f[self._iv] = -tau * np.tanh(w / self._speed)
+        output.SetFromVector(f)
 
 
 def in_pick_volume(p_WH: np.ndarray, center: np.ndarray, volume: dict) -> bool:
@@ -205,8 +211,14 @@ class Task(TaskDefinition):
         joint_index = joint.index()
 
         def add_friction(builder: DiagramBuilder, plant_: MultibodyPlant) -> None:
-            add_valve_friction(builder, plant_, plant_.get_joint(joint_index).velocity_start(),
-                               v["friction_torque"], v["friction_speed"])
+            friction = builder.AddNamedSystem(
+                "valve_friction",
+                ValveFriction(plant_, plant_.get_joint(joint_index).velocity_start(),
+                              v["friction_torque"],
+                              v["friction_speed"]))
+            builder.Connect(plant_.get_state_output_port(), friction.GetInputPort("plant_state"))
+            builder.Connect(friction.GetOutputPort("generalized_force"),
+                            plant_.get_applied_generalized_force_input_port())
 
         priors = {
             "valve_id": v["id"],
