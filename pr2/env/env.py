@@ -24,9 +24,7 @@ import time
 from typing import Any
 
 from pr2 import sim
-
-#: [s] the original platform's physics step (every task).
-PHYSICS_DT = 0.001
+from pr2_drake.porting.launch import PHYSICS_DT  # [s] the original's physics step
 _HOOKS: list = []  # the exit hooks, installed once per process
 
 

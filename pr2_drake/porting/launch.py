@@ -36,6 +36,9 @@ AGENT_ENV = "PR2_DRAKE_AGENT"  # the solver's name in the report
 CONTROLLER_ENV = "PR2_DRAKE_CONTROLLER"  # host:port of the started controller server
 #: [s] a launcher interrupted by Ctrl-C has this long to write its report.
 INTERRUPT_GRACE = 10.0
+#: [s] the original platform's physics step (every task): pr2.env.Env steps at it, and the
+#: controller server started for a launcher answers once per such step.
+PHYSICS_DT = 0.001
 
 
 @dataclass
@@ -143,8 +146,6 @@ def start_server(task: int, port: int) -> tuple[subprocess.Popen, str]:
     Raises:
         ValueError: it exited instead (its own error line is on stderr).
     """
-    from pr2.env.env import PHYSICS_DT  # the launcher's Env calls the server once per step
-
     server = subprocess.Popen([sys.executable, "-m", "pr2_drake.cli", "controller-server",
                                "--task", str(task), "--port", str(port),
                                "--request-period", repr(PHYSICS_DT)],
