@@ -15,6 +15,7 @@ Example (see ``scenarios/valve_seed7.yaml``)::
     seconds: 30            # stop earlier than the task's limit
     plant: {time_step: 0.001, contact_approximation: lagged}
     sleep: {enabled: true, rest_time: 0.5}   # resting free objects sleep (task 6)
+    scene: {variation: false}   # true: the scene itself drawn from the seed (tasks 1, 2, 4-6)
     camera: {enabled: true, width: 320, height: 240, fps: 10}
     limits: {max_speed: 100.0}
 
@@ -79,6 +80,21 @@ class EpisodeLimits:
 
 
 @dataclass
+class SceneSettings:
+    """How the task's scene is made.
+
+    Attributes:
+        variation: False (the default): the task's own scene, as its YAML gives it. True: the
+            scene drawn from the episode seed within the ranges of the YAML's
+            ``scene.variation`` block (task 1 a rock field, task 2 the valve's height and
+            size, task 4 the slope, task 5 the risers and treads, task 6 a generated house;
+            task 3 has none); the priors describe the scene drawn.
+    """
+
+    variation: bool = False
+
+
+@dataclass
 class Scenario:
     """One episode, fully described.
 
@@ -101,6 +117,7 @@ class Scenario:
         limits: fall height without a task and the divergence bounds.
         sleep: when resting free objects sleep (no contacts computed until something comes
             near; :mod:`pr2_drake.sleep`); ``sleep: {enabled: false}`` turns it off.
+        scene: scene variation (``--set scene.variation=true``).
     """
 
     task: typing.Union[int, str, None] = None
@@ -116,6 +133,7 @@ class Scenario:
     start: typing.Optional[StartPose] = None
     limits: EpisodeLimits = field(default_factory=EpisodeLimits)
     sleep: SleepSettings = field(default_factory=SleepSettings)
+    scene: SceneSettings = field(default_factory=SceneSettings)
 
     def validate(self) -> None:
         """Raise :class:`ScenarioError` naming the first bad field."""
@@ -150,7 +168,7 @@ class Scenario:
         return TestbedConfig(
             task=self.task, seed=int(self.seed), time_step=p.time_step,
             contact_approximation=p.contact_approximation, contact_model=p.contact_model,
-            camera=self.camera, start=self.start,
+            camera=self.camera, start=self.start, variation=bool(self.scene.variation),
         )
 
     def time_limit(self, task_time_limit: typing.Optional[float]) -> float:
