@@ -64,13 +64,33 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
 from pydrake.systems.framework import Diagram
 
-from pr2_drake.agents.search.instruction import InstructionError
+from pr2_drake.agents.search.instruction import Instruction, InstructionError
+from pr2_drake.agents.search.mapping import MappingParams
 from pr2_drake.agents.search.memory import SearchAgentParams
 from pr2_drake.agents.search.navigation import NavigationParams
 from pr2_drake.agents.search.sequencer import ObjectSearchSequencer
+from pr2_drake.agents.search.tables import Table
 from pr2_drake.agents.sequencer import build_sequencer_agent
+
+
+def destination_from_priors(priors: dict[str, Any]) -> Table:
+    """The coffee table of the priors: ``coffee_table_center`` (top centre, x y z) and
+    ``coffee_table_size`` (x, y) [m]."""
+    c = [float(v) for v in priors["coffee_table_center"]]
+    size = [float(v) for v in priors.get("coffee_table_size", (1.0, 0.6))]
+    return Table("coffee_table", np.array(c[:2]), np.array(size), c[2])
+
+
+def furniture_height(scene: dict, instruction: Instruction | None) -> float | None:
+    """The top height [m] of the furniture the sentence names as the source (every piece of
+    furniture keeps its height in every house of the task), or None."""
+    if instruction is None or instruction.source_furniture is None:
+        return None
+    furniture = scene["furniture"].get(instruction.source_furniture)
+    return None if furniture is None else float(furniture["height"])
 
 
 class ObjectSearchAgent(Diagram):
@@ -107,11 +127,10 @@ class ObjectSearchAgent(Diagram):
         from pr2_drake.controllers.walking_params import WalkingParams
         from pr2_drake.tasks import get_task
 
-        if "object_models" not in priors:
+        if "object_models" not in priors or "coffee_table_center" not in priors:
             raise ValueError(f"ObjectSearchAgent needs the task-6 priors (object_models, "
-                             f"instruction); got {sorted(priors)}")
+                             f"coffee_table_center, instruction); got {sorted(priors)}")
         spec = get_task(6).spec
-        scene = spec.scene
         parser = parser or InstructionParser.from_task()
         instruction, error = None, ""
         try:
@@ -125,9 +144,10 @@ class ObjectSearchAgent(Diagram):
         detector = detector or ObjectDetector(models, K)
         height = models[instruction.target].height if (
             instruction and instruction.target in models) else 0.1
-        seq = ObjectSearchSequencer(instruction, scene, detector, height,
-                                    SearchAgentParams.load(params),
-                                    NavigationParams.load(), HeadCameraKinematics(), error,
-                                    (K.height, K.width))
+        seq = ObjectSearchSequencer(
+            instruction, destination_from_priors(priors), detector, height, K,
+            1.0 / float(cam["fps"]), (spec.arena["min"], spec.arena["max"]),
+            SearchAgentParams.load(params), NavigationParams.load(), HeadCameraKinematics(),
+            error, furniture_height(spec.scene, instruction), MappingParams.load())
         wparams = WalkingParams.load(overrides=[walking_params] if walking_params else [])
         build_sequencer_agent(self, seq, WalkingController(wparams, arms="effort"))
