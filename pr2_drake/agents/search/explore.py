@@ -152,20 +152,20 @@ class ExploreStages:
     # ---- paths -------------------------------------------------------------------------------
     def _path_blocked(self, m: SearchMemory, p_WB) -> bool:
         """Whether the map, since the path was planned, shows an obstacle on what is left of
-        it (farther than ``self_radius`` from the robot)."""
+        it (farther than ``blocked_distance`` from the robot: near it, the path leaves the
+        furniture it starts by)."""
         if m.path is None or m.path_version == m.map.version:
             return False
         m.path_version = m.map.version
         g = self._grid(m).inflated(self.nav.robot_radius)
         p = np.asarray(p_WB[:2], float)
         path = np.asarray(m.path, float)
-        k = int(np.argmin(np.linalg.norm(path - p, axis=1)))
-        points = [p] + list(path[max(k, 1):])
-        for a, b in zip(points, points[1:]):
+        k = max(0, int(np.argmin(np.linalg.norm(path - p, axis=1))) - 1)
+        for a, b in zip(path[k:], path[k + 1:]):
             n = max(2, int(np.linalg.norm(b - a) / 0.05))
             for s in np.linspace(0.0, 1.0, n):
                 q = a + s * (b - a)
-                if np.linalg.norm(q - p) > self.mp.self_radius and not g.free(q):
+                if np.linalg.norm(q - p) > self.p.blocked_distance and not g.free(q):
                     return True
         return False
 

@@ -69,6 +69,7 @@ class SearchAgentParams(Params):
     searched_margin: float = 0.15
     explore_max: int = 4
     explore_distance: float = 1.0
+    blocked_distance: float = 0.6
 
 
 class Stage(enum.IntEnum):
