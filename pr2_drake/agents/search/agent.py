@@ -11,17 +11,21 @@ replaceable on its own (constructor arguments of :class:`ObjectSearchSequencer`)
   the ``instruction`` prior -> target object, source furniture/room, destination;
 - ``detector`` (:class:`~.perception.ObjectDetector`, anything with ``find(rgb, depth, X_WC,
   target)``): the head camera frame (``rgbd`` input) -> the target's position in W;
-- ``grid`` (:class:`~.navigation.OccupancyGrid` of the public scene description) and
-  :func:`~.navigation.plan_path` / :func:`~.navigation.follow_velocity`: walking between rooms.
+- the map (:class:`~.mapping.HeightMap`, made from the head camera's depth as the robot
+  goes) and :func:`~.navigation.plan_path` / :func:`~.navigation.follow_velocity`: walking
+  between rooms on what the map shows, unknown floor counted free, planned again when the
+  map shows the path blocked.
 
 Stages (``stage`` output):
 
-1. NAVIGATE to a look pose ``look_distance`` before the next likely place (the source
-   furniture; else the furniture of the source room; else the object's home table in the
-   public scene description; then the other tables, nearest first), facing its top, on the
-   side of the table with the most free floor;
+0. SCAN: turn on the spot (``scan_turn_deg``), mapping, the detector looking for the target
+   in some frames (where it is seen: a hint);
+1. NAVIGATE to a look pose ``look_distance`` before the most likely top of the map not yet
+   searched (the tops the target was seen on; then those as high as the furniture the
+   sentence names; then the nearest), facing it, on the side with the most free floor; no
+   top left: walk to a frontier of the map (free floor next to unknown) and SCAN there;
 2. LOOK: stand still, take a frame, run the detector; try the headings ``look_yaws_deg``
-   (the camera is fixed on the base: the body turns); nothing found -> next place;
+   (the camera is fixed on the base: the body turns); nothing found -> next top;
 3. APPROACH: small steps onto a pick pose ``pick_standoff`` from the table edge, in line with
    the object (the hand's shoulder nearer it), facing the table; an object more than
    ``pick_reach`` from the hand's shoulder there is picked from the side (of the four)
@@ -51,13 +55,16 @@ A sentence that cannot be read (unknown object, no destination) ends the episode
 update with the parser's message (termination ``agent_error``, the message in the report), not
 with a crash at build time. Only the public observation (``body_state``, ``joint_state``,
 ``pick_state``, ``rgbd``), the priors (``instruction``, ``object_models``,
-``coffee_table_center``, ``coffee_table_size``) and the task's public scene description
-(tasks/6_object_search.yaml: walls, furniture, camera) are used; no simulator ground truth.
-Parameters: params/agents/search.yaml. Positions in m, world frame W.
+``coffee_table_center``, ``coffee_table_size``), the arena and the camera, and what holds in
+every house of the task, its own and every generated one (``scene.variation``): the names of
+objects, furniture and rooms, the furniture's heights, the robot starting in the target's
+room (see :mod:`.explore`) are used; no layout (walls, doorways, where furniture stands,
+which table holds what) and no simulator ground truth. Parameters: params/agents/search.yaml,
+search_mapping.yaml, search_navigation.yaml. Positions in m, world frame W.
 
 The parts: :mod:`.sequencer` (ports, memory, one update), :mod:`.stages` (what each stage
-does), :mod:`.memory` (parameters, stages, memory), :mod:`.tables` (the public scene's tables
-and poses).
+does), :mod:`.explore` (scan, map, search order, replanning, exploring), :mod:`.mapping` (the
+map), :mod:`.memory` (parameters, stages, memory), :mod:`.tables` (tops and poses).
 """
 
 from __future__ import annotations
