@@ -10,3 +10,7 @@ The main entry points:
 """
 
 __version__ = "0.1.0"
+
+from pr2_drake.learning.ids import register_when_gymnasium_loads as _register_gym_ids
+
+_register_gym_ids()

@@ -11,9 +11,10 @@ the ``--set`` overrides.
     pr2-drake compete SUBMISSIONS_DIR --tasks all|1,3 --seeds A:B [--jobs J] --out DIR
                       [--backend local|ray] [--ray-address ADDR]
     pr2-drake leaderboard DIR
-    pr2-drake controller-server [--port 8800] [--host 127.0.0.1] [--overrides YAML]
-                                [--terrain flat|rough]
+    pr2-drake controller-server [--task N] [--port 8800] [...]   (pr2_drake.porting.cli)
+    pr2-drake pr2-launch FOLDER N [--report JSON] [--port P] [--seed S]
     pr2-drake bench {sim,camera,startup,walking,whole-body,perception,...} [...]
+    pr2-drake render [YAML] --task N (--times 2.0,5.5 | --every 0.5 | --video out.mp4) [...]
     pr2-drake tasks
 
 Heavy imports (pydrake) happen inside the commands so that ``--help`` answers at once.
@@ -26,6 +27,9 @@ import json
 import sys
 import time
 from typing import Any
+
+from pr2_drake.compete.command import add_compete_args, add_isolate_args
+from pr2_drake.flags import OneLineErrors, positive_int
 
 
 def _camera_settings(args, current):
@@ -43,7 +47,10 @@ def _camera_settings(args, current):
         try:
             w, h = (int(v) for v in args.camera.lower().split("x"))
         except ValueError:
-            raise SystemExit(f"--camera: expected WIDTHxHEIGHT, 'on' or 'off', got {args.camera!r}")
+            w = h = 0
+        if w <= 0 or h <= 0:
+            raise ValueError(f"--camera: expected WIDTHxHEIGHT (positive), 'on' or 'off', got "
+                             f"{args.camera!r}")
         cam.width, cam.height = w, h
     if args.camera_fps is not None:
         cam.fps = args.camera_fps
@@ -141,11 +148,15 @@ def _print_report(report: dict[str, Any], out=sys.stdout) -> None:
 def cmd_run(args) -> int:
     from pydrake.geometry import Meshcat
 
+    from pr2_drake.compete.command import check_isolate_flags, run_isolated
     from pr2_drake.run import check_output_path, run_episode
 
+    check_isolate_flags(args)
     scenario = scenario_from_args(args, seed=args.seed)
     check_output_path(args.report, "--report")
     check_output_path(args.record, "--record")
+    if args.isolate:
+        return run_isolated(args, scenario, lambda r: _write_report(r, args.report))
     meshcat = None
     if args.meshcat:
         meshcat = Meshcat()
@@ -153,21 +164,25 @@ def cmd_run(args) -> int:
     report = run_episode(scenario, meshcat=meshcat, record=args.record,
                          record_camera=args.record_camera, camera_depth=args.camera_depth,
                          progress=None if args.quiet else sys.stderr)
-    _print_report(report)
+    _write_report(report, args.report)
     if args.record:
         print(f"  replay written to {args.record}")
     if args.record_camera:
         print(f"  head-camera video written to {args.record_camera}")
-    if args.report:
-        with open(args.report, "w") as f:
-            json.dump(report, f, indent=2)
-        print(f"  report written to {args.report}")
     if args.meshcat and not args.no_wait:
         try:
             input("Simulation done; press Enter to close Meshcat.")
         except EOFError:
             pass
     return 0
+
+
+def _write_report(report: dict[str, Any], path: str | None) -> None:
+    _print_report(report)
+    if path:
+        with open(path, "w") as f:
+            json.dump(report, f, indent=2)
+        print(f"  report written to {path}")
 
 
 def _parse_seeds(text: str) -> list[int]:
@@ -178,9 +193,12 @@ def _parse_seeds(text: str) -> list[int]:
         else:
             seeds = [int(s) for s in text.split(",")]
     except ValueError:
-        raise SystemExit(f"--seeds: expected A:B (B exclusive) or a comma list, got {text!r}")
+        raise ValueError(f"--seeds: expected A:B (B exclusive) or a comma list, got "
+                         f"{text!r}") from None
     if not seeds:
-        raise SystemExit(f"--seeds {text!r} selects no seed")
+        raise ValueError(f"--seeds {text!r} selects no seed")
+    if min(seeds) < 0:
+        raise ValueError(f"--seeds {text!r}: seeds are non-negative")
     return seeds
 
 
@@ -239,12 +257,12 @@ def cmd_eval(args) -> int:
     seeds = _parse_seeds(args.seeds)
     base = scenario_from_args(args)
     if base.task is None:
-        raise SystemExit("pr2-drake eval: --task is required (or a scenario file with a task)")
+        raise ValueError("eval: --task is required (or a scenario file with a task)")
     check_output_path(args.out, "--out")
     if not base.diagram:
         load_agent_class(agent_spec(base))  # a bad spec fails here, once, not in every worker
     task = task_id(base.task)
-    jobs = max(1, args.jobs)
+    jobs = args.jobs
     work = [replace(base, seed=s) for s in seeds]
     print(f"evaluating task {task} over {len(seeds)} seeds with {jobs} job(s)", file=sys.stderr)
     if jobs == 1:
@@ -277,47 +295,15 @@ def cmd_eval(args) -> int:
 
 
 def cmd_compete(args) -> int:
-    from pr2_drake.compete.runner import parse_tasks, run_competition, with_limits
-    from pr2_drake.compete.sandbox import SandboxLimits
+    from pr2_drake.compete.command import cmd_compete as compete
 
-    tasks = parse_tasks(args.tasks)
-    seeds = _parse_seeds(args.seeds)
-    limits = with_limits(SandboxLimits(), step_seconds=args.step_budget,
-                         step_wall_seconds=args.step_wall, episode_seconds=args.episode_wall, memory_mb=args.memory_mb,
-                         isolation=args.isolation)
-    rows = run_competition(args.submissions, tasks, seeds, args.out, jobs=max(1, args.jobs),
-                           seconds=args.seconds, limits=limits, backend=args.backend,
-                           ray_address=args.ray_address)
-    print(f"{len(rows)} episodes in {args.out}/results.json and results.csv; "
-          f"`pr2-drake leaderboard {args.out}` ranks them")
-    return 0
+    return compete(args, _parse_seeds(args.seeds))
 
 
 def cmd_leaderboard(args) -> int:
     from pr2_drake.compete.leaderboard import write_leaderboard
 
     print(write_leaderboard(args.dir, plots=not args.no_plots))
-    return 0
-
-
-def cmd_controller_server(args) -> int:
-    from pr2_drake.porting.controller_server import ControllerServer, ControllerServerConfig
-
-    config = ControllerServerConfig(terrain=args.terrain, request_period=args.request_period,
-                                    jump_apex=args.jump_apex)
-    if args.walking:
-        config.walking = args.walking
-    if args.overrides:
-        config.overrides = args.overrides
-    if args.jumping:
-        config.jumping = args.jumping
-    server = ControllerServer(args.host, args.port, config)
-    host, port = server.address
-    print(f"controller-server: listening on {host}:{port} (Ctrl-C stops)", flush=True)
-    try:
-        server.serve_forever()
-    finally:
-        server.close()
     return 0
 
 
@@ -341,7 +327,7 @@ def cmd_tasks(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="pr2-drake", description="Drake-native PR2 humanoid testbed")
+    parser = OneLineErrors(prog="pr2-drake", description="Drake-native PR2 humanoid testbed")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("run", help="run one scored episode (a scenario or diagram YAML, or flags)")
@@ -356,39 +342,19 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --record-camera: depth as a colour map beside the colour")
     p.add_argument("--report", metavar="JSON", help="write the report as JSON")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    add_isolate_args(p)
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("eval", help="run many seeded episodes and summarise")
     _add_episode_args(p)
     p.add_argument("--seeds", default="0:10", help="A:B (B exclusive) or a comma list")
-    p.add_argument("--jobs", type=int, default=1, help="parallel processes")
+    p.add_argument("--jobs", type=positive_int, default=1, help="parallel processes")
     p.add_argument("--out", metavar="JSON", help="write all reports and the summary")
     p.set_defaults(func=cmd_eval)
 
     p = sub.add_parser("compete", help="run every submission of a folder, sandboxed, over "
                                        "tasks and seeds (resumable)")
-    p.add_argument("submissions", metavar="SUBMISSIONS_DIR",
-                   help="one subfolder per submission, each with a submission.yaml")
-    p.add_argument("--tasks", default="all", help="all, or a comma list of ids/names")
-    p.add_argument("--seeds", default="0:5", help="A:B (B exclusive) or a comma list")
-    p.add_argument("--jobs", type=int, default=1, help="episodes at once (processes)")
-    p.add_argument("--out", required=True, metavar="DIR", help="results folder (resumes)")
-    p.add_argument("--seconds", type=float, help="cut every episode to this many simulated "
-                                                 "seconds (default: the task's limit)")
-    p.add_argument("--step-budget", type=float, help="CPU-time budget of one agent step [s] "
-                                                     "(default 2)")
-    p.add_argument("--step-wall", type=float, help="wall-clock cap of one agent step [s] "
-                                                   "(default 10 x the step budget)")
-    p.add_argument("--episode-wall", type=float, help="wall-clock limit of one episode [s] "
-                                                      "(default 3600)")
-    p.add_argument("--memory-mb", type=int, help="agent memory [MiB] (default 4096)")
-    p.add_argument("--isolation", choices=("auto", "bwrap", "none"),
-                   help="auto: bubblewrap where it works (default)")
-    p.add_argument("--backend", choices=("local", "ray"), default="local",
-                   help="local processes (default) or Ray tasks (pip install 'pr2-drake[ray]')")
-    p.add_argument("--ray-address", metavar="ADDR",
-                   help="with --backend ray: a running cluster (e.g. ray://head:10001, auto); "
-                        "default: a local Ray with --jobs CPUs")
+    add_compete_args(p)
     p.set_defaults(func=cmd_compete)
 
     p = sub.add_parser("leaderboard", help="rank a compete results folder; tables and plots")
@@ -396,24 +362,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plots", action="store_true", help="tables only")
     p.set_defaults(func=cmd_leaderboard)
 
-    p = sub.add_parser("controller-server",
-                       help="the original PR2 walking controller's TCP protocol, answered by "
-                            "the built-in walking/jump controller")
-    p.add_argument("--port", type=int, default=8800, help="TCP port (0: a free one; default 8800)")
-    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
-    p.add_argument("--walking", metavar="YAML", help="walking parameters "
-                                                     "(default params/controllers/walking.yaml)")
-    p.add_argument("--overrides", metavar="YAML", help="partial walking YAML on top, e.g. "
-                                                       "params/controllers/walking_rough.yaml")
-    p.add_argument("--terrain", choices=("flat", "rough"), default="flat",
-                   help="footholds: flat, or rough (unknown stones, task 1)")
-    p.add_argument("--jumping", metavar="YAML", help="jump parameters "
-                                                     "(default params/controllers/jumping.yaml)")
-    p.add_argument("--jump-apex", type=float, default=0.18,
-                   help="CoM rise of a change_state 2 jump [m] (default 0.18)")
-    p.add_argument("--request-period", type=float, default=0.001,
-                   help="simulated seconds per request without a 'time' field (default 0.001)")
-    p.set_defaults(func=cmd_controller_server)
+    from pr2_drake.porting.cli import add_controller_server_parser, add_pr2_launch_parser
+
+    add_controller_server_parser(sub)
+    add_pr2_launch_parser(sub)
 
     from pr2_drake.bench import BENCHMARKS
 
@@ -421,6 +373,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("what", choices=(*BENCHMARKS, "all"))
     p.add_argument("rest", nargs=argparse.REMAINDER, help="options of that benchmark")
     p.set_defaults(func=cmd_bench)
+
+    from pr2_drake.render.command import add_parser as add_render_parser
+
+    add_render_parser(sub, _add_episode_args, scenario_from_args)
 
     p = sub.add_parser("tasks", help="list the tasks")
     p.set_defaults(func=cmd_tasks)
@@ -432,7 +388,12 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.func(args)
     except (ValueError, FileNotFoundError) as e:
-        print(f"pr2-drake: error: {e}", file=sys.stderr)
+        print(f"pr2-drake: error: {' '.join(str(e).split())}", file=sys.stderr)
+        return 2
+    except SystemExit as e:  # a command refusing its input before running: one line, 2
+        if not isinstance(e.code, str):
+            raise
+        print(f"pr2-drake: error: {' '.join(e.code.split())}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)

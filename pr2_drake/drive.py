@@ -3,7 +3,7 @@
 An episode's agent is either blocks wired into its diagram (a Drake System: the simulator calls
 them) or an object the driver calls (``next_action(obs) -> action``, optional ``reset(obs)``).
 Every driver goes through this module: :func:`pr2_drake.run.run_episode`, the benchmarks'
-rigs (:mod:`pr2_drake.bench.rig`), the tests, and the competition's parent process, whose agent
+rigs (:mod:`pr2_drake.bench.rigs`), the tests, and the competition's parent process, whose agent
 lives in a sandbox.
 
 The API::
@@ -19,8 +19,9 @@ The API::
 - :func:`drive_policy` runs a ``next_action`` agent over an :class:`pr2_drake.env.Env`: ``reset``
   (if the agent has it) with the first observation, then ``next_action`` and ``env.step`` until
   the episode ends; an action that fails validation ends it ``invalid_action``.
-- A remote agent (the competition's, in its sandbox process) is any object with the same
-  methods. It reports its own faults by raising :class:`AgentEnded` (``agent_timeout``,
+- A remote agent (the competition's, in its sandbox process:
+  :class:`pr2_drake.compete.proxy.RemoteAgent`) is any object with the same methods. It
+  reports its own faults by raising :class:`AgentEnded` (``agent_timeout``,
   ``agent_memory``, ``agent_exit``, ...). ``observe`` replaces what it is given (default
   ``env.observation``: the dictionary; e.g. ``env.observation_values``, the port values a
   sandboxed child turns into that dictionary itself), and ``env`` may be any object with

@@ -25,6 +25,30 @@ from pr2_drake.scenario import Scenario, check_control_dt
 from pr2_drake.tasks.base import EpisodeStatus
 
 
+def reseed(episode: Episode, seed: int) -> bool:
+    """Make ``episode`` the episode of ``seed`` without rebuilding it, where its task's seed
+    draws the start pose alone (``TaskDefinition.start_of``) and the scenario fixes no start:
+    the testbed's default start pose moves there. Returns False (nothing changed) where the
+    scene must be built anew. Call :func:`restart` next."""
+    tb = episode.testbed
+    if tb.task is None or episode.scenario.start is not None:
+        return False
+    start = tb.task.start_of(seed)
+    if start is None:
+        return False
+    tb.set_start(start, seed)
+    episode.scenario = replace(episode.scenario, seed=int(seed))
+    if getattr(episode, "physics", None) is not None:  # domain randomisation: the seed's draw
+        episode.redraw_physics(int(seed))
+    return True
+
+
+def restart(episode: Episode) -> None:
+    """Put ``episode``'s Context back to time 0 and the default state and parameters (fixed
+    input values stay); then ``episode.initialize()``."""
+    episode.context.SetTimeStateAndParametersFrom(episode.diagram.CreateDefaultContext())
+
+
 class EpisodeOver(RuntimeError):
     """step() was called after the episode ended; call reset()."""
 
@@ -78,14 +102,17 @@ class Env:
 
     # -- public API ---------------------------------------------------------------------------
     def reset(self, seed: int | None = None) -> dict[str, Any]:
-        """Start a new episode (a new seed rebuilds the scene); returns the first observation."""
+        """Start a new episode; returns the first observation. A new seed moves the start
+        pose in the built scene where that is all the seed changes (:func:`reseed`), else
+        rebuilds the scene."""
         if seed is not None and int(seed) != self._scenario.seed:
             self._scenario = replace(self._scenario, seed=int(seed))
-            self._build(self._scenario)
-        ep = self._episode
-        ep.context.SetTimeStateAndParametersFrom(ep.diagram.CreateDefaultContext())
+            if not reseed(self._episode, int(seed)):
+                self._build(self._scenario)
+                return self.observation()
+        restart(self._episode)
         self._fix_defaults()
-        ep.initialize()
+        self._episode.initialize()
         return self.observation()
 
     def step(self, action: dict[str, Any]) -> tuple[bool, bool, dict[str, Any]]:

@@ -50,7 +50,7 @@ class Progress:
         self.last = now
         wall = now - self.start
         rtf = t / wall if wall > 0 else float("nan")
-        limit = "" if math.isinf(self.limit) else f"/{self.limit:.0f}"
+        limit = "" if math.isinf(self.limit) else f"/{self.limit:g}"
         score = f"  score {status.score:g}/{status.max_score:g}" if status.max_score else ""
         print(f"  t = {t:6.2f}{limit} s{score}  real-time factor {rtf:4.2f}", file=self.stream,
               flush=True)
@@ -94,7 +94,8 @@ def check_output_path(path: str | None, what: str) -> None:
 
 def run_episode(scenario: Scenario, *, meshcat: Meshcat | None = None,
                 record: str | None = None, progress: TextIO | None = None,
-                record_camera: str | None = None, camera_depth: bool = False) -> dict[str, Any]:
+                record_camera: str | None = None, camera_depth: bool = False,
+                watchers: Wiring | None = None) -> dict[str, Any]:
     """Build the scenario, run its agent until the episode ends, and return the report.
 
     Args:
@@ -105,6 +106,9 @@ def run_episode(scenario: Scenario, *, meshcat: Meshcat | None = None,
         record_camera: write the head camera's colour stream to this mp4 file at the camera's
             rate (turns the camera on if the scenario has it off); ``camera_depth``: put the
             depth, as a colour map, beside the colour.
+        watchers: ``watchers(builder, testbed)`` adds blocks that watch the episode (they read
+            testbed outputs and drive none of its inputs), e.g. ``pr2-drake render``'s state
+            recorder; wired after the agent.
 
     Raises:
         ScenarioError (a ValueError): the episode could not start (bad scenario, agent spec,
@@ -116,7 +120,7 @@ def run_episode(scenario: Scenario, *, meshcat: Meshcat | None = None,
     check_output_path(record_camera, "--record-camera")
     spec = agent_spec(scenario)
     if record_camera and (scenario.camera is None or not scenario.camera.enabled):
-        scenario = replace(scenario, camera=replace(scenario.camera or _task_camera(scenario),
+        scenario = replace(scenario, camera=replace(scenario.camera or task_camera(scenario),
                                                     enabled=True))
     if record and meshcat is None:
         meshcat = quiet_meshcat()
@@ -125,8 +129,8 @@ def run_episode(scenario: Scenario, *, meshcat: Meshcat | None = None,
         scenario, wire = _diagram_wiring(scenario)
     else:
         wire = _agent_wiring(scenario, spec)
-    episode = _build(scenario, with_camera_recorder(wire, record_camera, camera_depth,
-                                                    recorders), meshcat)
+    wire = with_camera_recorder(wire, record_camera, camera_depth, recorders)
+    episode = _build(scenario, _with_watchers(wire, watchers), meshcat)
     policy = None if scenario.diagram or is_system_agent(episode.blocks) else episode.blocks
     if meshcat is not None:
         frame_robot(meshcat, episode.testbed)
@@ -195,7 +199,20 @@ def _diagram_wiring(scenario: Scenario) -> tuple[Scenario, Wiring]:
     return scenario, wire
 
 
-def _task_camera(scenario: Scenario):
+def _with_watchers(wire: Wiring | None, watchers: Wiring | None) -> Wiring | None:
+    """``wire``, then ``watchers`` (see :func:`run_episode`); the blocks are ``wire``'s."""
+    if watchers is None:
+        return wire
+
+    def wire_and_watch(builder: DiagramBuilder, testbed: Testbed):
+        blocks = wire(builder, testbed) if wire is not None else None
+        watchers(builder, testbed)
+        return blocks
+
+    return wire_and_watch
+
+
+def task_camera(scenario: Scenario):
     """The camera settings the scenario's task asks for (its YAML block), or the defaults."""
     from pr2_drake.camera import CameraSettings
 

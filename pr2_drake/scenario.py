@@ -158,9 +158,13 @@ class Scenario:
             _positive(f"limits.{name}", getattr(self.limits, name))
         try:
             self.sleep.validate()
-            self.testbed_config().validate()
+            config = self.testbed_config()
+            config.validate()
         except ValueError as e:
             raise ScenarioError(str(e)) from None
+        if self.control_dt is not None and self.control_dt < config.time_step * (1 - 1e-9):
+            raise ScenarioError(f"control_dt must be at least one physics step "
+                                f"({config.time_step:g} s), got {self.control_dt!r}")
 
     def testbed_config(self) -> TestbedConfig:
         """The testbed block's configuration for this scenario."""

@@ -17,7 +17,7 @@ the camera is on), and with a task: ``score`` (1), ``episode``
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
@@ -193,6 +193,14 @@ class Testbed(Diagram):
         builder.ExportOutput(scene_graph.get_query_output_port(), "geometry_query")
         builder.BuildInto(self)
         self.set_name("testbed")
+
+    def set_start(self, start: StartPose, seed: int) -> None:
+        """Move the robot's default start pose (a new default Context starts there) and
+        record the seed it was drawn from: a built testbed reused for another seed of a task
+        whose seed draws the start pose alone (``TaskDefinition.start_of``)."""
+        self.config = replace(self.config, seed=int(seed), start=None)
+        self.scene.start = start
+        self._set_default_pose(start)
 
     # -- construction -------------------------------------------------------------------------
     def _set_default_pose(self, start: StartPose) -> None:

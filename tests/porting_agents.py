@@ -30,11 +30,11 @@ class OriginalKeysAgent:
 
 class InProcessWalker:
     """An original-style solver that gets its torques from
-    :class:`pr2_drake.porting.controller_server.InProcessClient` (no socket: the sandbox
+    :class:`pr2_drake.porting.clients.InProcessClient` (no socket: the sandbox
     refuses them)."""
 
     def __init__(self):
-        from pr2_drake.porting.controller_server import InProcessClient
+        from pr2_drake.porting.clients import InProcessClient
 
         self.client = InProcessClient()
 

@@ -6,15 +6,17 @@ from pathlib import Path
 
 import pytest
 
+from pr2_drake.compete.isolation import NO_BWRAP_ENV, IsolationUnavailable, works
 from pr2_drake.compete.proxy import run_sandboxed_episode
-from pr2_drake.compete.sandbox import SandboxLimits, bwrap_available
+from pr2_drake.compete.sandbox import SandboxLimits
 from pr2_drake.run import run_episode
 from pr2_drake.scenario import Scenario
 from pr2_drake.scene import StartPose
 
 HOSTILE = Path(__file__).with_name("hostile") / "hostile_agents.py"
 ON_THE_ROAD = StartPose(x=1.0, y=0.0, yaw=0.0)  # task 1: "task_region" (5 points) at once
-LIMITS = SandboxLimits(step_seconds=1.0, step_wall_seconds=2.0, startup_seconds=60.0)
+LIMITS = SandboxLimits(step_seconds=1.0, step_wall_seconds=2.0, startup_seconds=60.0,
+                       memory_mb=1024)
 
 
 def _scenario(agent: str, seconds: float = 0.2, **params) -> Scenario:
@@ -29,7 +31,7 @@ def _sandboxed(agent: str, **params) -> dict:
 @pytest.mark.parametrize("cheat", ["GcTeleport", "FrameReferee", "PatchReferee"])
 def test_cheats_that_score_in_process_score_nothing_in_the_sandbox(cheat):
     r = _sandboxed(cheat)
-    assert r["sandbox"] in ("bwrap", "rlimits")
+    assert r["sandbox"] in ("bwrap", "unshare")
     assert r["score"] == 5 and [e["item"] for e in r["items"]] == ["task_region"], r
     assert r["termination"] == "timeout" and not r["success"]
 
@@ -108,22 +110,31 @@ def test_a_system_agent_in_the_sandbox_matches_the_same_agent_in_process(task, s
 @pytest.mark.parametrize("agent, termination", [
     ("WritesOutside", "agent_error"), ("Allocates10GB", "agent_memory"),
     ("HardExit", "agent_exit")])
-def test_without_bubblewrap_limits_and_an_unprivileged_user_still_hold(agent, termination,
-                                                                      tmp_path):
+def test_without_bubblewrap_namespaces_and_an_unprivileged_user_still_hold(
+        agent, termination, tmp_path, monkeypatch):
+    monkeypatch.setenv(NO_BWRAP_ENV, "1")  # as if bubblewrap were not installed
     victim = tmp_path / "victim.txt"
     victim.write_text("intact")
-    limits = SandboxLimits(step_seconds=1.0, startup_seconds=60.0, isolation="none")
     r = run_sandboxed_episode(_scenario(f"{HOSTILE}:{agent}", target=str(victim)),
-                              limits=limits)
-    assert r["sandbox"] == "rlimits"
+                              limits=LIMITS)
+    assert r["sandbox"] == "unshare"
     assert r["termination"] == termination and r["score"] == 5, r
     assert victim.read_text() == "intact"
+
+
+def test_no_isolation_only_when_the_organiser_trusts_the_submissions():
+    with pytest.raises(IsolationUnavailable, match="--trust-submissions"):
+        run_sandboxed_episode(_scenario("pr2_drake.agents.standing:StandingAgent", 0.05),
+                              limits=SandboxLimits(isolation="none"))
+    r = run_sandboxed_episode(_scenario("pr2_drake.agents.standing:StandingAgent", 0.05),
+                              limits=SandboxLimits(isolation="none", trust=True))
+    assert r["sandbox"] == "none" and r["termination"] == "timeout" and r["steps"] == 5
 
 
 def test_the_sandbox_says_which_isolation_it_used():
     r = run_sandboxed_episode(_scenario("pr2_drake.agents.standing:StandingAgent", 0.05),
                               limits=LIMITS)
-    assert r["sandbox"] == ("bwrap" if bwrap_available() else "rlimits")
+    assert r["sandbox"] == ("bwrap" if works("bwrap") else "unshare")
     assert r["steps"] == 5 and r["step_time_mean"] > 0 and r["agent_compute_max"] > 0
 
 
@@ -138,7 +149,6 @@ def test_camera_frames_cross_through_shared_memory():
     assert r["steps"] == 15
 
 
-@pytest.mark.skipif(not bwrap_available(), reason="hiding folders needs bubblewrap")
 def test_other_submissions_are_hidden(tmp_path):
     others = tmp_path / "others"
     others.mkdir()
@@ -172,4 +182,12 @@ def test_a_submission_that_cannot_be_imported_is_an_agent_error():
 def test_a_system_agent_gets_only_the_offered_ports():
     r = _sandboxed("PeeksAtPlantState")
     assert r["termination"] == "agent_error" and "ports that are not offered" in r["message"], r
+    assert r["steps"] == 0
+
+
+def test_an_agent_asking_for_a_control_period_below_one_physics_step_is_refused():
+    attackers = HOSTILE.with_name("attackers.py")
+    r = run_sandboxed_episode(Scenario(task=1, seed=0, agent=f"{attackers}:TinyControlDt",
+                                       start=ON_THE_ROAD, seconds=0.2), limits=LIMITS)
+    assert r["termination"] == "agent_error" and "control_dt" in r["message"], r
     assert r["steps"] == 0

@@ -14,19 +14,19 @@ import pytest
 from pr2_drake.env import Env
 from pr2_drake.run import run_episode
 from pr2_drake.observation import observation_from_ports
-from pr2_drake.porting.controller_server import (
+from pr2_drake.porting.clients import (
     ControllerClient,
     ControllerError,
-    ControllerServer,
-    ControllerServerConfig,
     InProcessClient,
     request_from_obs,
 )
+from pr2_drake.porting.controller_server import ControllerServer
+from pr2_drake.porting.session import ControllerServerConfig
 from pr2_drake.scenario import Scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 SOLVER = ROOT / "examples" / "pr2_solver" / "solver.py"
-ROUGH = ControllerServerConfig(overrides="params/controllers/walking_rough.yaml", terrain="rough")
+ROUGH = ControllerServerConfig.for_task(1)
 
 
 @pytest.fixture(scope="module")
@@ -58,9 +58,9 @@ def test_error_replies_name_the_fault_and_keep_the_connection(server):
         assert "not UTF-8" in client.request(b'{"a": "\xff"}')["error"]
         err = client.request({k: v for k, v in good.items() if k != "w_wb"})["error"]
         assert "missing key(s) ['w_wb']" in err
-        for bad in (7, 1, "jump", True, 2.5):
+        for bad in (7, 1, 4, -2, "jump", True, 2.5, [3]):
             err = client.request({**good, "change_state": bad})["error"]
-            assert "request['change_state']: unknown value" in err, err
+            assert f"request['change_state']: unknown value {bad!r}" in err, err
         assert "request['q_leg'] must have 10 entries" in client.request(
             {**good, "q_leg": [0.0] * 9})["error"]
         raw = json.dumps(good).replace('"v_wb": [', '"v_wb": [NaN, ', 1)
@@ -71,7 +71,7 @@ def test_error_replies_name_the_fault_and_keep_the_connection(server):
                                                              "world_orient": np.zeros(4)}}}
         with pytest.raises(ControllerError, match="quat_wb"):
             client.get_cmd(bad_obs, 0.0, 0.0, 0.0)
-        for state in (-1, 0, False, None, -1.0):  # the original's solvers send all of these
+        for state in (-1, 0, False, None, -1.0, 3, 3.0):  # the original's solvers send these
             reply = client.request({**good, "change_state": state})
             assert reply["mode"] == "effort" and len(reply["effort"]) == 10, reply
             assert np.all(np.isfinite(reply["effort"]))
@@ -114,17 +114,17 @@ def test_in_process_client_answers_like_the_server(server):
         for _ in range(3):
             a, b = client.get_cmd(obs, 0.2, 0, 0, -1), local.get_cmd(obs, 0.2, 0, 0, -1)
             assert a == b
-    assert "unknown value" in local.request({**request_from_obs(obs, 0, 0, 0), "change_state": 3})[
-        "error"]
+    assert "unknown value 4" in local.request({**request_from_obs(obs, 0, 0, 0),
+                                                "change_state": 4})["error"]
 
 
 def test_the_cli_serves_the_protocol():
     proc = subprocess.Popen([sys.executable, "-m", "pr2_drake.cli", "controller-server", "--port",
-                             "0"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
-                            cwd=ROOT)
+                             "0", "--task", "5"], stdout=subprocess.PIPE,
+                            stderr=subprocess.DEVNULL, text=True, cwd=ROOT)
     try:
         line = proc.stdout.readline()
-        assert "listening on 127.0.0.1:" in line, line
+        assert "listening on 127.0.0.1:" in line and "for task 5" in line, line
         port = int(line.split("127.0.0.1:")[1].split()[0])
         obs = Env(seed=0).reset()
         with ControllerClient("127.0.0.1", port) as client:
@@ -195,3 +195,18 @@ def test_a_sandboxed_solver_uses_the_in_process_client():
                                        agent=f"{agent}:InProcessWalker"),
                               limits=SandboxLimits(step_seconds=2.0, startup_seconds=60.0))
     assert r["termination"] == "timeout" and r["steps"] == 300, r
+
+
+@pytest.mark.parametrize("flags, named", [
+    (["--max-clients", "0"], "--max-clients"), (["--idle-timeout", "nan"], "--idle-timeout"),
+    (["--task", "7"], "unknown task 7"), (["--overrides", "no_such_file.yaml"], "no_such_file"),
+    (["--terrain", "stairs"], "terrain 'stairs'"), (["--overrides", "{bad}"], "bad.yaml: while"),
+    (["--jumping", "{bad}"], "bad.yaml: while")])
+def test_the_cli_refuses_bad_flags(tmp_path, flags, named):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("gait: [1, 2\n")  # malformed YAML
+    flags = [f.format(bad=bad) for f in flags]
+    run = subprocess.run([sys.executable, "-m", "pr2_drake.cli", "controller-server", "--port",
+                          "0", *flags], capture_output=True, text=True, cwd=ROOT, timeout=60)
+    assert run.returncode == 2 and run.stderr.startswith("pr2-drake: error:"), run.stderr
+    assert named in run.stderr and not run.stdout

@@ -29,3 +29,10 @@ def test_wheel_runs_outside_the_checkout(tmp_path):
                           "--quiet"], cwd=tmp_path, env=env, capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
     assert "ended: timeout" in run.stdout
+    # The original platform's names ship too, with the per-task controller servers' table.
+    probe = ("import pr2, pr2.env, pr2.solver, pr2.tcp; print(pr2.__file__); "
+             "from pr2_drake.porting.session import ControllerServerConfig as C; "
+             "print(C.for_task(5).overrides)")
+    out = subprocess.run([sys.executable, "-c", probe], cwd=tmp_path, env=env,
+                         capture_output=True, text=True, check=True).stdout.split()
+    assert out[0].startswith(str(target)) and out[1] == "walking_stairs.yaml"

@@ -1,51 +1,26 @@
-"""A task solver written in the original PR2 platform's style, run unchanged on pr2-drake.
+"""A task solver in the original PR2 platform's style, run by ``pr2-drake run``.
 
-The original's solvers subclass ``TaskSolverBase``, get the observation dictionary every
-physics step in ``next_action(obs)`` and ask the walking-controller server (TCP, port 8800) for
-the leg torques with their own small client: a 4-byte big-endian length, then JSON. This one
-walks to ``obs["goal"]`` (task 1's goal centre). Start the server, then run it::
+The original's solvers subclass ``pr2.solver.TaskSolverBase``, get the observation dictionary
+every physics step in ``next_action(obs)`` and ask the walking-controller server (TCP, port
+8800) for the leg torques through ``pr2.tcp``. This one walks to ``obs["goal"]`` (task 1's goal
+centre). A whole original ``examples/`` folder runs with ``pr2-drake pr2-launch``; a single
+solver class runs as any agent, beside a server::
 
-    pr2-drake controller-server --port 8800 --overrides params/controllers/walking_rough.yaml \
-        --terrain rough &
+    pr2-drake controller-server --task 1 &
     pr2-drake run --task 1 --agent examples/pr2_solver/solver.py:TaskSolver --seconds 10
 """
 
 import json
 import math
-import socket
-import struct
 
 import numpy as np
 
-
-class TaskSolverBase:
-    """The original platform's solver interface: ``next_action(obs) -> action``."""
-
-    def next_action(self, obs: dict) -> dict:
-        raise NotImplementedError
+from pr2.solver import TaskSolverBase
+from pr2.tcp import PersistentTcpClient, json2bin
 
 
-class WalkingCtrlClient:
-    """A persistent TCP client of the walking-controller server (the original's protocol)."""
-
-    def __init__(self, ip: str = "127.0.0.1", port: int = 8800):
-        self.sock = socket.create_connection((ip, port), timeout=30.0)
-        self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-
-    def send_request(self, msg: dict) -> dict:
-        data = json.dumps(msg).encode("utf-8")
-        self.sock.sendall(struct.pack(">I", len(data)) + data)
-        (n,) = struct.unpack(">I", self._recv(4))
-        return json.loads(self._recv(n).decode("utf-8"))
-
-    def _recv(self, n: int) -> bytes:
-        buf = b""
-        while len(buf) < n:
-            chunk = self.sock.recv(n - len(buf))
-            if not chunk:
-                raise ConnectionError("controller server closed the connection")
-            buf += chunk
-        return buf
+class WalkingCtrlClient(PersistentTcpClient):
+    """Asks the walking-controller server for leg torques (the original's request)."""
 
     def get_cmd(self, obs: dict, vx: float, vy: float, theta: float, state) -> dict:
         js = obs["agent"]["joint_state"]
@@ -62,7 +37,7 @@ class WalkingCtrlClient:
             "command": [vx, vy, theta],
             "change_state": state,
         }
-        return self.send_request(msg)
+        return json.loads(self.send(json2bin(msg)).decode("ascii"))
 
 
 class TaskSolver(TaskSolverBase):

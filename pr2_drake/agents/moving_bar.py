@@ -171,17 +171,14 @@ class MovingBarAgent(Diagram):
     def __init__(self, priors: dict[str, Any] | None = None, params: str | None = None,
                  jump_params: str | None = None):
         super().__init__()
-        from pr2_drake.controllers.jump_params import JumpParams
-        from pr2_drake.controllers.jumping import JumpController
         from pr2_drake.controllers.posture import ArmPosture
 
         priors = priors or {}
         size = priors.get("bar_size", (2.0, 0.05, 0.05))
         p = MovingBarParams.load(params)
-        jp = JumpParams.load(overrides=[jump_params] if jump_params else [])
         builder = DiagramBuilder()
         timer = builder.AddNamedSystem("bar_jump_planner", BarJumpPlanner(float(size[1]), p))
-        jumper = builder.AddNamedSystem("jumper", JumpController(None, jp))
+        jumper = builder.AddNamedSystem("jumper", self.controller(priors, jump_params))
         arms = builder.AddNamedSystem("arm_posture", ArmPosture(
             stiffness=jumper.params.arm_stiffness, damping=jumper.params.arm_damping))
         builder.ExportInput(jumper.GetInputPort("joint_state"), "joint_state")
@@ -193,3 +190,13 @@ class MovingBarAgent(Diagram):
         builder.ExportOutput(arms.GetOutputPort("arms_command"), "arms_command")
         builder.ExportOutput(jumper.GetOutputPort("jump_status"), "jump_status")
         builder.BuildInto(self)
+
+    @staticmethod
+    def controller(priors: dict[str, Any] | None = None, jump_params: str | None = None, **_):
+        """The jump controller this agent drives (the command-level learning envs drive the
+        same one); other parameter files are ignored."""
+        from pr2_drake.controllers.jump_params import JumpParams
+        from pr2_drake.controllers.jumping import JumpController
+
+        jp = JumpParams.load(overrides=[jump_params] if jump_params else [])
+        return JumpController(None, jp)

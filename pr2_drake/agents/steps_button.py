@@ -180,18 +180,25 @@ class StepsButtonAgent(Diagram):
     def __init__(self, priors: dict[str, Any], params: str | None = None,
                  walking_params: str | None = None):
         super().__init__()
-        from pr2_drake.controllers.planning.terrain import stairs_from_priors
-        from pr2_drake.controllers.planning.tread_steps import TreadFootstepPlanner
-        from pr2_drake.controllers.walking import WalkingController
-        from pr2_drake.controllers.walking_params import WalkingParams
-
         center = priors.get("button_center")
         if center is None:
             raise ValueError(f"StepsButtonAgent needs a 'button_center' prior; got "
                              f"{sorted(priors)}")
         seq_params = StepsButtonParams.load(params)
+        build_sequencer_agent(self, StepsButtonSequencer(center, seq_params),
+                              self.controller(priors, walking_params))
+
+    @staticmethod
+    def controller(priors: dict[str, Any], walking_params: str | None = None, **_):
+        """The walking controller this agent drives: the staircase from the priors as its
+        terrain, footholds on the treads, the arms in the QP (the command-level learning envs
+        drive the same one); other parameter files are ignored."""
+        from pr2_drake.controllers.planning.terrain import stairs_from_priors
+        from pr2_drake.controllers.planning.tread_steps import TreadFootstepPlanner
+        from pr2_drake.controllers.walking import WalkingController
+        from pr2_drake.controllers.walking_params import WalkingParams
+
         wparams = WalkingParams.load(overrides=[walking_params] if walking_params else [])
         terrain = stairs_from_priors(priors)
         footsteps = TreadFootstepPlanner(wparams.gait, wparams.limits.start_threshold, terrain)
-        build_sequencer_agent(self, StepsButtonSequencer(center, seq_params), WalkingController(
-            wparams, footsteps=footsteps, terrain=terrain, arms="effort"))
+        return WalkingController(wparams, footsteps=footsteps, terrain=terrain, arms="effort")

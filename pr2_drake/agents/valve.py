@@ -320,17 +320,22 @@ class ValveAgent(Diagram):
     def __init__(self, priors: dict[str, Any], params: str | None = None,
                  goal_params: str | None = None, walking_params: str | None = None):
         super().__init__()
-        from pr2_drake.controllers.walking import WalkingController
-
         center = priors.get("valve_center")
         if center is None:
             raise ValueError(f"ValveAgent needs a 'valve_center' prior; got {sorted(priors)}")
-        from pr2_drake.controllers.walking_params import WalkingParams
-
         seq_params = ValveAgentParams.load(params)
         goal = GoalPlannerParams.load(goal_params)
-        wparams = (WalkingParams.load(overrides=[walking_params]) if walking_params else None)
         dims = priors.get("valve_dimensions") or {}
         rim_radius = 0.5 * float(dims.get("diameter", 0.54))
         build_sequencer_agent(self, ValveSequencer(center, rim_radius, seq_params, goal),
-                              WalkingController(wparams, arms="effort"))
+                              self.controller(priors, walking_params))
+
+    @staticmethod
+    def controller(priors: dict[str, Any], walking_params: str | None = None, **_):
+        """The walking controller this agent drives, its arms in the QP (the command-level
+        learning envs drive the same one); other parameter files are ignored."""
+        from pr2_drake.controllers.walking import WalkingController
+        from pr2_drake.controllers.walking_params import WalkingParams
+
+        wparams = (WalkingParams.load(overrides=[walking_params]) if walking_params else None)
+        return WalkingController(wparams, arms="effort")

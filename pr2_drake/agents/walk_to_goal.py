@@ -114,8 +114,6 @@ class WalkToGoalAgent(Diagram):
                  walking_params: str | None = None):
         super().__init__()
         from pr2_drake.controllers.posture import ArmPosture
-        from pr2_drake.controllers.walking import WalkingController
-        from pr2_drake.controllers.walking_params import WalkingParams
 
         goal = priors.get("goal_center", priors.get("goal"))
         if goal is None:
@@ -123,11 +121,9 @@ class WalkToGoalAgent(Diagram):
                 f"WalkToGoalAgent needs a 'goal_center' prior; the task gives {sorted(priors)}"
             )
         planner_params = GoalPlannerParams.load(params)
-        wparams = WalkingParams.load(overrides=[walking_params] if walking_params else [])
         builder = DiagramBuilder()
         planner = builder.AddNamedSystem("planner", GoalVelocityPlanner(goal, planner_params))
-        terrain = self.make_terrain(priors, np.asarray(goal, dtype=float))
-        walker = builder.AddNamedSystem("walker", WalkingController(wparams, terrain=terrain))
+        walker = builder.AddNamedSystem("walker", self.controller(priors, walking_params))
         arms = builder.AddNamedSystem("arm_posture", ArmPosture())
         builder.ExportInput(walker.GetInputPort("joint_state"), "joint_state")
         body = builder.ExportInput(walker.GetInputPort("body_state"), "body_state")
@@ -139,7 +135,21 @@ class WalkToGoalAgent(Diagram):
         builder.ExportOutput(planner.GetOutputPort("velocity_command"), "velocity_command")
         builder.BuildInto(self)
 
-    def make_terrain(self, priors: dict[str, Any], goal: np.ndarray):
+    @classmethod
+    def controller(cls, priors: dict[str, Any], walking_params: str | None = None, **_):
+        """The walking controller this agent steers (terrain from the priors, gains from
+        ``walking_params``); the command-level learning envs drive the same one
+        (:mod:`pr2_drake.learning.command`). Other parameter files are ignored."""
+        from pr2_drake.controllers.walking import WalkingController
+        from pr2_drake.controllers.walking_params import WalkingParams
+
+        goal = priors.get("goal_center", priors.get("goal"))
+        wparams = WalkingParams.load(overrides=[walking_params] if walking_params else [])
+        terrain = cls.make_terrain(priors, np.asarray(goal, dtype=float))
+        return WalkingController(wparams, terrain=terrain)
+
+    @classmethod
+    def make_terrain(cls, priors: dict[str, Any], goal: np.ndarray):
         """The walking controller's terrain model (None: flat, the controller's default)."""
         return None
 
@@ -151,7 +161,8 @@ class SlopeAgent(WalkToGoalAgent):
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
-    def make_terrain(self, priors, goal):
+    @classmethod
+    def make_terrain(cls, priors, goal):
         from pr2_drake.controllers.planning.terrain import SlopeTerrain
 
         angle = priors.get("slope_angle_deg")
@@ -170,7 +181,8 @@ class RockyRoadAgent(WalkToGoalAgent):
     #: [m] swing soles aim this far below the stance sole (stone heights vary by 2 cm).
     LANDING_DROP = 0.025
 
-    def make_terrain(self, priors, goal):
+    @classmethod
+    def make_terrain(cls, priors, goal):
         from pr2_drake.controllers.planning.terrain import RoughTerrain
 
-        return RoughTerrain(self.LANDING_DROP)
+        return RoughTerrain(cls.LANDING_DROP)

@@ -12,6 +12,8 @@
     pr2-drake bench perception   the task-6 object detector on rendered head-camera views
     pr2-drake bench parser       the task-6 instruction parser's accuracy
     pr2-drake bench sandbox      what the competition's process boundary costs per tick
+    pr2-drake bench render       the path tracer: seconds per frame and noise against samples
+    pr2-drake bench learning     the learning envs: steps/s per level, reset time, SB3 PPO
 
 Each module has ``main(argv) -> exit status`` and its options (``pr2-drake bench NAME
 --help``). The rigs the benchmarks, tests and notebooks share are in
@@ -27,7 +29,8 @@ import importlib
 BENCHMARKS = {"sim": "sim", "camera": "camera", "startup": "startup",
               "scene-step": "scene_step", "walking": "walking", "whole-body": "whole_body",
               "jumping": "jumping", "stairs": "stairs", "perception": "perception",
-              "parser": "parser", "sandbox": "sandbox"}
+              "parser": "parser", "sandbox": "sandbox", "render": "render",
+              "learning": "learning"}
 ALL = ("startup", "sim", "camera", "walking")  # ``pr2-drake bench all``
 
 

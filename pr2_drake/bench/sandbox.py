@@ -22,6 +22,7 @@ from pr2_drake.compete.proxy import run_sandboxed_episode
 from pr2_drake.compete.sandbox import SandboxLimits, isolation_note
 from pr2_drake.run import run_episode
 from pr2_drake.scenario import Scenario
+from pr2_drake.testbed import task_time_step
 
 AGENTS = ("pr2_drake.agents.standing:StandingAgent",
           "pr2_drake.controllers.standing:StandingController")
@@ -36,7 +37,7 @@ def boundary_cpu_us(task: int, repeats: int = 2000) -> dict[str, float]:
 
     from pr2_drake.agents.standing import StandingAgent
     from pr2_drake.compete.child import _binary, jsonable
-    from pr2_drake.compete.sandbox import decode_reply
+    from pr2_drake.compete.channel import decode_reply
     from pr2_drake.env import Env
     from pr2_drake.observation import observation_from_ports
 
@@ -87,14 +88,15 @@ def main(argv: list[str]) -> int:
         camera = CameraSettings(enabled=True, width=w, height=h, fps=10)
     limits = SandboxLimits()
     print(isolation_note(limits))
-    print(f"task {a.task}, {a.seconds:g} s simulated, a tick per physics step (1 ms)"
-          + (f", camera {a.camera}" if camera else ""))
+    step = task_time_step(a.task)
+    print(f"task {a.task}, {a.seconds:g} s simulated, a tick per physics step "
+          f"({step * 1e3:g} ms)" + (f", camera {a.camera}" if camera else ""))
     print(f"  {'agent':<48}{'ticks':>7}{'round trip':>12}{'compute':>10}{'overhead':>10}"
           f"{'median':>9}"
           f"{'wall':>8}{'in proc.':>10}")
     for spec in AGENTS:
         scenario = Scenario(task=a.task, seed=0, agent=spec, seconds=a.seconds, camera=camera,
-                            control_dt=0.001 if spec.endswith("Agent") else None)
+                            control_dt=step if spec.endswith("Agent") else None)
         r = run_sandboxed_episode(scenario, limits=limits)
         start = time.perf_counter()
         run_episode(scenario)

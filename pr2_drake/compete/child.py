@@ -29,6 +29,7 @@ folder) raise PermissionError inside the agent and are reported with the next an
 
 from __future__ import annotations
 
+import errno
 import json
 import mmap
 import os
@@ -270,7 +271,8 @@ class Child:
             if isinstance(path, int):
                 return
             real = os.path.realpath(os.fsdecode(path))
-            if real != "/dev/null" and not real.startswith(self.scratch + os.sep):
+            if real not in ("/dev/null", self.scratch) and \
+                    not real.startswith(self.scratch + os.sep):
                 self._forbid(f"open({real!r}) for writing")
 
     @staticmethod
@@ -295,6 +297,11 @@ class Child:
                 reply = {"exit": code}
             except MemoryError as e:
                 reply = {"error": f"MemoryError: {e}", "type": "MemoryError"}
+            except OSError as e:
+                # an mmap or a thread beyond the address-space limit: out of memory
+                kind = "MemoryError" if e.errno == errno.ENOMEM else type(e).__name__
+                reply = {"error": f"{type(e).__name__}: {' '.join(str(e).split())}"[:1000],
+                         "type": kind}
             except BaseException as e:  # the agent's fault, whatever it is: report it
                 reply = {"error": f"{type(e).__name__}: {' '.join(str(e).split())}"[:1000],
                          "type": type(e).__name__}

@@ -25,19 +25,21 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
+from pr2_drake.compete import ledger
+
 CATEGORIES = {"locomotion": (1, 3, 4, 5), "manipulation": (2, 6), "perception": (6,)}
 INSTALL_HINT = "pip install 'pr2-drake[compete]'  (matplotlib)"
 
 
 def load_rows(folder: str | Path) -> list[dict[str, Any]]:
-    """The episodes of a results folder (results.json, else episodes.jsonl)."""
+    """The episodes of a results folder (results.json, else the rows of episodes.jsonl whose
+    MAC checks)."""
     folder = Path(folder)
     if (folder / "results.json").is_file():
         return json.loads((folder / "results.json").read_text())["episodes"]
-    if (folder / "episodes.jsonl").is_file():
-        from pr2_drake.compete.runner import read_done
-
-        return list(read_done(folder / "episodes.jsonl").values())
+    if (folder / "episodes.jsonl").is_file() and (folder / ledger.KEY_FILE).is_file():
+        return list(ledger.read_rows(folder / "episodes.jsonl",
+                                     ledger.run_key(folder))[0].values())
     raise ValueError(f"{folder}: no results.json or episodes.jsonl (run pr2-drake compete)")
 
 
@@ -120,6 +122,9 @@ def _grid(plt, n: int):
     return fig, flat[:n]
 
 
+PLOTS = ("score_distribution.png", "completion_times.png", "category_points.png")
+
+
 def write_plots(rows: list[dict[str, Any]], tasks: list[int], table, folder: Path) -> list[str]:
     """The three figures (see the module docstring); returns their paths relative to
     ``folder``. Raises ImportError without matplotlib."""
@@ -132,11 +137,18 @@ def write_plots(rows: list[dict[str, Any]], tasks: list[int], table, folder: Pat
 
     out = folder / "plots"
     out.mkdir(exist_ok=True)
-    n = len(tasks)
     specs = {t: get_task(t).spec for t in tasks}
-    n_subs = len(table)
+    for name, draw in zip(PLOTS, (_score_distribution, _completion_times, _category_points)):
+        fig = draw(plt, rows, tasks, specs, table)
+        fig.tight_layout()
+        fig.savefig(out / name, dpi=100)
+        plt.close(fig)
+    return [f"plots/{p}" for p in PLOTS]
 
-    fig, axes = _grid(plt, n)
+
+def _score_distribution(plt, rows, tasks, specs, table):
+    """Per task: the share of episodes at each score, full marks marked."""
+    fig, axes = _grid(plt, len(tasks))
     for ax, t in zip(axes, tasks):
         scores = [r["score"] for r in rows if int(r["task"]) == t]
         top = float(specs[t].max_score)
@@ -161,11 +173,12 @@ def write_plots(rows: list[dict[str, Any]], tasks: list[int], table, folder: Pat
         ax.set_ylabel("share of episodes [%]")
         ax.set_ylim(0, 120)  # room above 100 % for the labels
         ax.set_yticks(range(0, 101, 20))
-    fig.tight_layout()
-    fig.savefig(out / "score_distribution.png", dpi=100)
-    plt.close(fig)
+    return fig
 
-    fig, axes = _grid(plt, n)
+
+def _completion_times(plt, rows, tasks, specs, table):
+    """Per task and score: the simulated completion times, the time limit marked."""
+    fig, axes = _grid(plt, len(tasks))
     for ax, t in zip(axes, tasks):
         groups = defaultdict(list)
         for r in rows:
@@ -191,10 +204,12 @@ def write_plots(rows: list[dict[str, Any]], tasks: list[int], table, folder: Pat
         ax.set_title(f"task {t} {specs[t].name}", fontsize=10)
         ax.set_xlabel("score (green: full marks)")
         ax.set_ylabel("completion time [s, simulated]")
-    fig.tight_layout()
-    fig.savefig(out / "completion_times.png", dpi=100)
-    plt.close(fig)
+    return fig
 
+
+def _category_points(plt, rows, tasks, specs, table):
+    """Per category of tasks: the points available and the mean earned."""
+    n_subs = len(table)
     fig, ax = plt.subplots(figsize=(6, 3.6))
     names, got, avail = [], [], []
     for cat, cat_tasks in CATEGORIES.items():
@@ -218,11 +233,7 @@ def write_plots(rows: list[dict[str, Any]], tasks: list[int], table, folder: Pat
     ax.set_title(f"mean over {n_subs} submission{'s' if n_subs != 1 else ''} and the seeds"
                  + (" (task 6 counts in two)" if 6 in tasks else ""), fontsize=10)
     ax.legend(loc="upper right", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / "category_points.png", dpi=100)
-    plt.close(fig)
-    return [f"plots/{p}" for p in ("score_distribution.png", "completion_times.png",
-                                   "category_points.png")]
+    return fig
 
 
 def write_leaderboard(folder: str | Path, plots: bool = True) -> str:

@@ -6,10 +6,12 @@ A submissions folder holds one subfolder per submission, each with a ``submissio
     agents: {1: walker:Walker, 3: jumper:Jumper}   # one per task (ids or names); others: none
     agent_params: {params: gains.yaml}  # optional keyword arguments of the constructors
 
-The subfolder is copied into the sandbox and put on its agent's import path (its cwd too).
-Results go to ``OUT/episodes.jsonl`` as each episode ends (so a killed run resumes where it
-stopped: finished episodes are not run again), then ``OUT/results.json`` and
-``OUT/results.csv`` (one row per episode).
+The subfolder is bound read-only into the sandbox and put on its agent's import path (its cwd
+too); the harness itself reads only its ``submission.yaml`` (a regular file, never through a
+link). Results go to ``OUT/episodes.jsonl`` as each episode ends, each row with a MAC
+(:mod:`.ledger`), so a killed run resumes where it stopped (finished episodes are not run
+again; a row without a valid MAC is), then ``OUT/results.json`` and ``OUT/results.csv`` (one
+row per episode). Only the harness writes them, from outside every sandbox.
 
 Backends (``jobs`` episodes at once on either): ``local`` runs episodes in this process or a
 pool of spawned processes; ``ray`` sends each episode as a Ray task (:func:`run_job`, the same
@@ -26,11 +28,15 @@ import json
 import os
 import sys
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, TextIO
 
-from pr2_drake.compete.sandbox import SandboxLimits, isolation_note
+from pr2_drake.compete import ledger
+from pr2_drake.compete.isolation import IsolationUnavailable
+from pr2_drake.compete.limits import SandboxLimits
+from pr2_drake.compete.sandbox import isolation_note
+from pr2_drake.compete.submission import read_submission_yaml
 
 CSV_FIELDS = ("submission", "task", "seed", "score", "max_score", "termination", "items",
               "sim_time", "wall_time", "agent_compute_mean_ms", "agent_compute_max_ms",
@@ -67,10 +73,13 @@ def load_submissions(root: str | Path) -> list[Submission]:
     subs = []
     for folder in sorted(p for p in root.iterdir() if p.is_dir()):
         file = folder / "submission.yaml"
-        if not file.is_file():
+        if not (file.exists() or file.is_symlink()):
             continue
+        if folder.is_symlink():
+            raise ValueError(f"{folder}: a submission folder may not be a symbolic link")
+        text = read_submission_yaml(file)
         try:
-            data = yaml_load(data=file.read_text()) or {}
+            data = yaml_load(data=text) or {}
         except Exception as e:
             raise ValueError(f"{file}: not valid YAML: {' '.join(str(e).split())}") from None
         if not isinstance(data, dict) or not (("agent" in data) ^ ("agents" in data)):
@@ -93,7 +102,7 @@ def load_submissions(root: str | Path) -> list[Submission]:
         params = data.get("agent_params") or {}
         if not isinstance(params, dict):
             raise ValueError(f"{file}: agent_params must be a mapping")
-        subs.append(Submission(str(data.get("name") or folder.name), folder.resolve(), agents,
+        subs.append(Submission(str(data.get("name") or folder.name), folder.absolute(), agents,
                                {str(k): v for k, v in params.items()}))
     if not subs:
         raise ValueError(f"no submission in {root}: each subfolder needs a submission.yaml")
@@ -147,6 +156,8 @@ def run_job(job: Job) -> dict[str, Any]:
     try:
         report = run_sandboxed_episode(scenario, submission=job.submission.folder,
                                        limits=job.limits, hide=tuple(map(Path, job.hide)))
+    except IsolationUnavailable:
+        raise
     except ValueError as e:  # the scenario could not start (a bad agent_params, ...)
         from pr2_drake.tasks import get_task
 
@@ -156,19 +167,6 @@ def run_job(job: Job) -> dict[str, Any]:
                   "wall_time": round(time.perf_counter() - start, 3),
                   "message": " ".join(str(e).split())}
     return {"submission": job.submission.name, **report}
-
-
-def read_done(path: Path) -> dict[tuple[str, int, int], dict[str, Any]]:
-    """The rows already in ``episodes.jsonl`` (a line cut off by a kill is skipped)."""
-    done = {}
-    if path.is_file():
-        for line in path.read_text().splitlines():
-            try:
-                row = json.loads(line)
-                done[(row["submission"], int(row["task"]), int(row["seed"]))] = row
-            except (ValueError, KeyError, TypeError):
-                continue
-    return done
 
 
 BACKENDS = ("local", "ray")
@@ -196,17 +194,28 @@ def run_competition(root: str | Path, tasks: Iterable[int], seeds: Iterable[int]
     if backend == "ray":
         _import_ray()
     limits = limits or SandboxLimits()
+    note = isolation_note(limits)  # raises IsolationUnavailable before anything runs
     subs = load_submissions(root)
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out}: is a file; give a folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise ValueError(f"--out {out}: cannot make the folder ({os.strerror(e.errno)})") \
+            from None
     log = out / "episodes.jsonl"
-    done = read_done(log)
+    key = ledger.run_key(out)
+    done, rejected = ledger.read_rows(log, key)
     hide = tuple(str(p.resolve()) for p in (Path(root), out))
     todo = [Job(s, t, seed, seconds, limits, hide) for s in subs for t in tasks for seed in seeds
             if s.agent_for(t) is not None]
     todo = [j for j in todo if j.key not in done]
     say = (lambda text: print(text, file=progress, flush=True)) if progress else (lambda _: 0)
-    say(isolation_note(limits))
+    say(note)
+    if rejected:
+        say(f"{rejected} line(s) of {log} without a valid MAC (cut off, or not written by "
+            f"this harness) ignored: those episodes run again")
     say(f"{len(subs)} submissions, tasks {list(tasks)}, seeds {list(seeds)}: "
         f"{len(done)} episodes done before, {len(todo)} to run with {jobs} job(s)"
         + (f" on Ray ({ray_address or 'local'})" if backend == "ray" else ""))
@@ -215,9 +224,7 @@ def run_competition(root: str | Path, tasks: Iterable[int], seeds: Iterable[int]
                else _results(todo, jobs))
     with open(log, "a") as f:
         for i, row in enumerate(results, 1):
-            f.write(json.dumps(row) + "\n")
-            f.flush()
-            os.fsync(f.fileno())
+            ledger.append(f, row, key)
             done[(row["submission"], int(row["task"]), int(row["seed"]))] = row
             say(f"  {row['submission']:<20} task {row['task']} seed {row['seed']:>3}: score "
                 f"{row['score']:>4g}/{row['max_score']:g} {row['termination']:<14} "
@@ -226,7 +233,8 @@ def run_competition(root: str | Path, tasks: Iterable[int], seeds: Iterable[int]
     rows = sorted(done.values(), key=lambda r: (r["submission"], r["task"], r["seed"]))
     write_results(rows, out, meta={"submissions": [s.name for s in subs], "tasks": list(tasks),
                                    "seeds": list(seeds), "seconds": seconds,
-                                   "limits": vars(limits), "isolation": isolation_note(limits)})
+                                   "limits": vars(limits), "isolation": note,
+                                   "trust_submissions": limits.trust})
     return rows
 
 
@@ -309,8 +317,3 @@ def write_results(rows: list[dict[str, Any]], out: Path, meta: dict[str, Any]) -
         w.writeheader()
         for r in rows:
             w.writerow(csv_row(r))
-
-
-def with_limits(limits: SandboxLimits, **changes) -> SandboxLimits:
-    """``limits`` with the given fields changed (None: unchanged)."""
-    return replace(limits, **{k: v for k, v in changes.items() if v is not None})

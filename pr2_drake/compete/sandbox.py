@@ -1,311 +1,209 @@
-"""The agent's sandboxed process and the channel to it.
+"""The agent's sandboxed process, for one episode, and the requests the harness sends it.
 
-The agent runs in ``python -m pr2_drake.compete.child`` started under bubblewrap where the
-``bwrap`` binary works (no network, every file system read-only but a scratch folder, own PID
-namespace, killed with its parent), with resource limits: data memory (``RLIMIT_DATA``), CPU
-time (``RLIMIT_CPU``) and processes (a cgroup ``pids.max`` where cgroups are writable, else
-``RLIMIT_NPROC``). The submission folder is copied into the scratch folder and put on the
-import path.
-
-Messages are frames: a 4-byte big-endian length, then the payload. The parent sends pickles
-(the child trusts the parent); the child answers JSON only (the parent never unpickles what an
-agent wrote). Camera frames travel through a shared-memory block (a memfd) instead of the pipe.
+The agent runs in ``python -m pr2_drake.compete.child`` isolated as
+:mod:`pr2_drake.compete.isolation` says (bubblewrap, else util-linux ``unshare``; never as
+root), in a control group of its own where the machine allows (:mod:`.cgroups`: all its
+memory, its processes), with resource limits (CPU time, file size, and address space or
+processes where no group holds them). Its submission folder is bound read-only into the
+sandbox, after a check that no symbolic link in it leads out of it. Its output goes to a file
+the harness holds open and the agent cannot name. The channel (:mod:`.channel`) carries
+frames both ways and camera frames through a sealed memfd.
 """
 
 from __future__ import annotations
 
-import itertools
-import json
-import mmap
+import ctypes
 import os
 import pickle
 import resource
 import select
 import shutil
 import signal
-import struct
 import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
+from pr2_drake.compete import isolation
+from pr2_drake.compete.cgroups import AgentCgroup
+from pr2_drake.compete.jail import JAIL_FAILED
+from pr2_drake.compete.channel import (
+    MAX_REPLY_BYTES,
+    Budget,
+    ChannelError,
+    camera_block,
+    decode_reply,
+    process_cpu_clock,
+    to_shared,
+    write_all,
+)
+from pr2_drake.compete.limits import AgentFault, SandboxLimits
+from pr2_drake.compete.submission import check_submission
 from pr2_drake.framing import LENGTH, frame
 
-MAX_REPLY_BYTES = 1 << 20  # a longer answer from the agent is garbage [bytes]
-CAMERA_BYTES = 64 << 20  # shared-memory block for camera frames [bytes]
-_PROJECT_ROOT = Path(__file__).resolve().parents[2]
-_COUNTER = itertools.count()
-NOBODY = 65534  # the uid an agent runs as when the harness is root and bubblewrap is missing
-
-
-@dataclass
-class SandboxLimits:
-    """What an agent may use (YAML: the ``limits`` of a competition).
-
-    Attributes:
-        memory_mb: data memory of the agent's process [MiB] (``RLIMIT_DATA``).
-        processes: processes and threads at once in the sandbox.
-        cpu_seconds: CPU time of the agent's process per episode [s].
-        step_seconds: budget for one action [s], charged in the agent process's CPU time:
-            a busy machine that starves the agent does not use it up.
-        step_wall_seconds: wall-clock cap of one action [s] (catches an agent that sleeps
-            or blocks instead of computing); None: ten times ``step_seconds``.
-        startup_seconds: wall-clock budget to import and build the agent [s].
-        episode_seconds: wall-clock limit of an episode once the agent is built (simulation
-            included) [s].
-        isolation: "auto" (bubblewrap when it works), "bwrap" (required) or "none".
-    """
-
-    memory_mb: int = 4096
-    processes: int = 64
-    cpu_seconds: int = 3600
-    step_seconds: float = 2.0
-    step_wall_seconds: float | None = None
-    startup_seconds: float = 120.0
-    episode_seconds: float = 3600.0
-    isolation: str = "auto"
-
-    @property
-    def step_wall_cap(self) -> float:
-        """The wall-clock cap of one action [s]."""
-        if self.step_wall_seconds is not None:
-            return max(float(self.step_wall_seconds), float(self.step_seconds))
-        return 10.0 * float(self.step_seconds)
-
-
-class AgentFault(Exception):
-    """The agent ended its episode: ``termination`` (one of the agent_* names or
-    invalid_action) and a one-line ``message``."""
-
-    def __init__(self, termination: str, message: str):
-        super().__init__(message)
-        self.termination = termination
-        self.message = message
-
-
-_BWRAP_OK: bool | None = None
-
-
-def bwrap_available() -> bool:
-    """Whether bubblewrap can start a sandbox here (checked once per process)."""
-    global _BWRAP_OK
-    if _BWRAP_OK is None:
-        exe = shutil.which("bwrap")
-        _BWRAP_OK = False
-        if exe:
-            try:
-                r = subprocess.run([exe, "--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc",
-                                    "--unshare-all", "--die-with-parent", "true"],
-                                   capture_output=True, timeout=20)
-                _BWRAP_OK = r.returncode == 0
-            except (OSError, subprocess.TimeoutExpired):
-                _BWRAP_OK = False
-    return _BWRAP_OK
-
-
-def _pids_cgroup_root() -> Path | None:
-    """A writable cgroup (v1 pids controller or v2) to cap the sandbox's processes."""
-    for root in (Path("/sys/fs/cgroup/pids"), Path("/sys/fs/cgroup")):
-        if (root / "cgroup.procs").exists() and os.access(root, os.W_OK):
-            if root.name == "pids" or "pids" in _read(root / "cgroup.subtree_control"):
-                return root
-    return None
-
-
-def _read(p: Path) -> str:
-    try:
-        return p.read_text()
-    except OSError:
-        return ""
+LOG_BYTES = 4000  # the end of the agent's output kept for its report [bytes]
+# Settings of the linear-algebra libraries the agent's process keeps from the harness's
+# environment (OPENBLAS_CORETYPE picks OpenBLAS's kernels, whose roundings differ): the agent
+# computes as it would in process.
+NUMERIC_ENV = ("OPENBLAS_", "MKL_", "NPY_", "BLIS_", "GOTO_", "NVPL_")
+AS_HEADROOM = 4 << 30
+MEMORY_CHECK = 0.5  # while waiting for an answer, look this often whether the agent is stuck
+# at its memory limit [s]  # address space beyond twice the memory limit, with a memory group [B]
+_SANDBOXES = "pr2_drake_sandboxes"  # parent of every agent's scratch folder (hidden in each)
+_LIBC = ctypes.CDLL(None)  # loaded here: nothing is imported between fork and exec
+PR_SET_PDEATHSIG = 1
 
 
 class AgentProcess:
     """One agent in its sandbox, for one episode.
 
     Args:
-        submission: the submission folder (copied into the scratch folder, on the import path),
-            or None for built-in agents only.
-        limits: the resource limits.
+        submission: the submission folder (bound read-only into the sandbox, its cwd and on
+            its import path), or None for built-in agents only.
+        limits: the resource limits and the isolation.
         hide: folders the agent must not see (other submissions, the results).
     """
 
     def __init__(self, submission: Path | None, limits: SandboxLimits,
                  hide: tuple[Path, ...] = ()):
         self.limits = limits
-        self.submission = None if submission is None else Path(submission).resolve()
-        self.hide = tuple(Path(h).resolve() for h in hide)
+        self.submission = None if submission is None else Path(os.path.abspath(submission))
+        self.hide = tuple(Path(os.path.abspath(h)) for h in hide)
         self.proc: subprocess.Popen | None = None
-        self.isolated = False
+        self.kind = isolation.choose(limits.isolation, limits.trust)
         self.scratch: Path | None = None
-        self._cgroup: Path | None = None
-        self._cam_fd = -1
-        self._cam: mmap.mmap | None = None
+        self.cgroup: AgentCgroup | None = None
+        self._log: Any = None
+        self._w = self._r = self._cam_fd = -1
+        self._cam = None
         self._clock: int | None = None
+
+    @property
+    def isolated(self) -> bool:
+        return self.kind != "none"
 
     # -- lifetime -----------------------------------------------------------------------------
     def start(self) -> None:
-        limits = self.limits
-        if limits.isolation not in ("auto", "bwrap", "none"):
-            raise ValueError(f"limits.isolation must be auto, bwrap or none, got "
-                             f"{limits.isolation!r}")
-        use_bwrap = limits.isolation != "none" and bwrap_available()
-        if limits.isolation == "bwrap" and not use_bwrap:
-            raise RuntimeError("limits.isolation is 'bwrap' but bubblewrap does not work here "
-                               "(apt-get install bubblewrap)")
-        self.scratch = Path(tempfile.mkdtemp(prefix="pr2_agent_"))
-        work = self.scratch / "work"
-        work.mkdir()
-        sub_inside = ""
+        """Start the sandbox. Raises AgentFault when the submission is refused."""
         if self.submission is not None:
-            shutil.copytree(self.submission, self.scratch / "submission", symlinks=False,
-                            ignore=shutil.ignore_patterns("__pycache__", ".git"))
+            problem = check_submission(self.submission, foreign_uid=self.isolated
+                                       and os.getuid() == 0)
+            if problem:
+                raise AgentFault("agent_error", f"submission refused: {problem}")
+        parent = Path(tempfile.gettempdir()) / _SANDBOXES
+        parent.mkdir(mode=0o711, exist_ok=True)
+        self.scratch = Path(tempfile.mkdtemp(prefix="agent_", dir=parent))
         to_child_r, to_child_w = os.pipe()
         from_child_r, from_child_w = os.pipe()
-        self._cam_fd = os.memfd_create("pr2_camera")
-        os.ftruncate(self._cam_fd, CAMERA_BYTES)
-        self._cam = mmap.mmap(self._cam_fd, CAMERA_BYTES)
+        self._cam_fd, self._cam = camera_block()
         fds = (to_child_r, from_child_w, self._cam_fd)
-        inner = "/tmp/sandbox" if use_bwrap else str(self.scratch)
-        if self.submission is not None:
-            sub_inside = f"{inner}/submission"
-        pythonpath = os.pathsep.join(p for p in (sub_inside, str(_PROJECT_ROOT)) if p)
-        child = [sys.executable, "-B", "-m", "pr2_drake.compete.child",
-                 *map(str, fds), f"{inner}/work"]
-        env = {"PATH": os.environ.get("PATH", "/usr/bin:/bin"), "PYTHONPATH": pythonpath,
-               "HOME": f"{inner}/work", "TMPDIR": f"{inner}/work", "PYTHONUNBUFFERED": "1",
-               "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
-               "PR2_DRAKE_SANDBOX": "1"}
-        if use_bwrap:
-            argv = ["bwrap", "--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc",
-                    "--tmpfs", "/tmp", "--tmpfs", "/dev/shm"]
-            # The project and its Python may themselves live under /tmp (a CI clone): bind
-            # them back, read-only, over the empty /tmp.
-            for keep in sorted({_PROJECT_ROOT, Path(sys.prefix), Path(sys.base_prefix)}):
-                if any(_contains(Path(t), (keep,)) for t in ("/tmp", "/dev/shm")):
-                    argv += ["--ro-bind", str(keep), str(keep)]
-            for h in self.hide:
-                if h.is_dir() and not _contains(h, (_PROJECT_ROOT, Path(sys.prefix),
-                                                    Path(sys.base_prefix))):
-                    argv += ["--tmpfs", str(h)]
-            cwd = f"{inner}/submission" if self.submission is not None else f"{inner}/work"
-            argv += ["--bind", str(self.scratch), inner, "--chdir", cwd,
-                     "--unshare-all", "--uid", "65534", "--gid", "65534", "--die-with-parent",
-                     "--new-session", "--", *child]
-        else:
-            argv = child
-        self._cgroup = self._make_cgroup()
-        self._drop_to = None
-        if not use_bwrap and os.getuid() == 0 and _usable_by_others():
-            self._drop_to = NOBODY
-            for p in (self.scratch, *self.scratch.rglob("*")):
-                os.chown(p, NOBODY, NOBODY)
-        log = open(self.scratch / "agent.log", "wb")
+        self.cgroup = AgentCgroup(self.limits.memory_bytes, self.limits.processes)
+        self._child_rlimits = self._rlimits()
+        argv, env, cwd = self._command(fds, parent)
+        self._log = tempfile.TemporaryFile(prefix="pr2_agent_log_")  # unlinked: unnamed
         try:
-            self.proc = subprocess.Popen(
-                argv, pass_fds=fds, env=env,
-                cwd=str(self.scratch / "submission" if self.submission is not None else work),
-                stdin=subprocess.DEVNULL,
-                stdout=log, stderr=subprocess.STDOUT, start_new_session=True,
-                preexec_fn=self._limit_child)
+            self.proc = subprocess.Popen(argv, pass_fds=fds, env=env, cwd=cwd,
+                                         stdin=subprocess.DEVNULL, stdout=self._log,
+                                         stderr=subprocess.STDOUT, start_new_session=True,
+                                         preexec_fn=self._in_child_before_exec)
         finally:
-            log.close()
             os.close(to_child_r)
             os.close(from_child_w)
-        self.isolated = use_bwrap
         self._w, self._r = to_child_w, from_child_r
 
-    def _make_cgroup(self) -> Path | None:
-        root = _pids_cgroup_root()
-        if root is None:
-            return None
-        group = root / f"pr2_agent_{os.getpid()}_{next(_COUNTER)}"
-        try:
-            group.mkdir()
-            (group / "pids.max").write_text(str(self.limits.processes))
-            return group
-        except OSError:
-            return None
+    def _command(self, fds, parent: Path) -> tuple[list[str], dict[str, str], str]:
+        """The command line, environment and working folder of the sandbox."""
+        inside = isolation.INSIDE if self.isolated else str(self.scratch)
+        sub = (f"{inside}/submission" if self.isolated else str(self.submission)) \
+            if self.submission is not None else ""
+        work = f"{inside}/work"
+        if not self.isolated:
+            os.mkdir(work)
+        child = [sys.executable, "-B", "-m", "pr2_drake.compete.child", *map(str, fds), work]
+        env = {"PATH": os.environ.get("PATH", "/usr/bin:/bin"), "HOME": work, "TMPDIR": work,
+               "PYTHONPATH": os.pathsep.join(p for p in (sub, str(isolation.PROJECT_ROOT)) if p),
+               "PYTHONUNBUFFERED": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
+               "MKL_NUM_THREADS": "1", "PR2_DRAKE_SANDBOX": "1"}
+        env.update({k: v for k, v in os.environ.items()  # the same linear-algebra kernels
+                    if k.startswith(NUMERIC_ENV) and not k.endswith("_NUM_THREADS")})
+        cwd = sub or work
+        if not self.isolated:
+            return child, env, cwd
+        plan = isolation.mount_plan(self.submission, (*self.hide, parent),
+                                    self.limits.memory_bytes)
+        root = self.scratch / "root"
+        root.mkdir()
+        argv = isolation.command(self.kind, child, plan=plan, root=root,
+                                 uid=isolation.agent_uid(), rlimits=self._child_rlimits, cwd=cwd)
+        return argv, env, "/"
 
-    def _limit_child(self) -> None:
-        """Runs in the child between fork and exec."""
-        mem = int(self.limits.memory_mb) << 20
-        resource.setrlimit(resource.RLIMIT_DATA, (mem, mem))
-        cpu = int(self.limits.cpu_seconds)
-        resource.setrlimit(resource.RLIMIT_CPU, (cpu, cpu + 5))
-        resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
-        if self._cgroup is not None:
-            with open(self._cgroup / "cgroup.procs", "w") as f:
-                f.write(str(os.getpid()))
-        elif os.getuid() != 0:
-            n = self.limits.processes + _count_own_processes()
-            resource.setrlimit(resource.RLIMIT_NPROC, (n, n))
-        if self._drop_to is not None:  # root without bubblewrap: run as nobody
-            os.setgroups([])
-            os.setgid(self._drop_to)
-            os.setuid(self._drop_to)
-            if self._cgroup is None:
-                resource.setrlimit(resource.RLIMIT_NPROC,
-                                   (self.limits.processes, self.limits.processes))
+    def _rlimits(self) -> dict[str, int]:
+        """The agent process's resource limits (what no control group holds here)."""
+        lim = self.limits
+        out = {"RLIMIT_CPU": int(lim.cpu_seconds), "RLIMIT_CORE": 0,
+               "RLIMIT_FSIZE": lim.memory_bytes}
+        # The address space: the limit itself without a memory group; with one (which
+        # counts what is used), a guard that refuses absurd reservations at once.
+        out["RLIMIT_AS"] = lim.memory_bytes if not self.cgroup.limits_memory else \
+            2 * lim.memory_bytes + AS_HEADROOM
+        if not self.cgroup.limits_processes:
+            own = 0 if os.getuid() == 0 else _count_own_processes()
+            out["RLIMIT_NPROC"] = int(lim.processes) + own
+        return out
+
+    def _in_child_before_exec(self) -> None:
+        """Runs in the forked child before exec: the control group, and for the unisolated
+        set-up the resource limits (the isolated ones get theirs after dropping privileges)."""
+        _LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        self.cgroup.attach()
+        if not self.isolated:
+            for name, value in self._child_rlimits.items():
+                resource.setrlimit(getattr(resource, name), (value, value))
 
     def close(self) -> None:
-        """Kill the sandbox (SIGKILL: an agent ignoring SIGTERM goes too) and clean up."""
+        """Kill the sandbox (SIGKILL: an agent ignoring SIGTERM goes too; its PID 1 takes
+        every process in the namespace with it), wait until they are gone, clean up."""
+        namespace = self._namespace()
+        self._terminate()
         if self.proc is not None:
-            if self.proc.poll() is None:
-                try:
-                    os.killpg(self.proc.pid, signal.SIGKILL)
-                except ProcessLookupError:
-                    pass
             try:
                 self.proc.wait(timeout=10)
             except subprocess.TimeoutExpired:
                 pass
-        self._kill_cgroup()
-        for fd in ("_w", "_r"):
-            if getattr(self, fd, -1) >= 0:
-                os.close(getattr(self, fd))
-                setattr(self, fd, -1)
+        if self.cgroup is not None:
+            self.cgroup.kill()
+        if namespace:
+            _wait_until_empty(namespace)
+        for name in ("_w", "_r", "_cam_fd"):
+            if getattr(self, name) >= 0:
+                os.close(getattr(self, name))
+                setattr(self, name, -1)
         if self._cam is not None:
             self._cam.close()
-            os.close(self._cam_fd)
             self._cam = None
+        if self._log is not None:
+            self._log.close()
+            self._log = None
         if self.scratch is not None:
             shutil.rmtree(self.scratch, ignore_errors=True)
             self.scratch = None
 
-    def _kill_cgroup(self) -> None:
-        group = self._cgroup
-        if group is None:
-            return
-        for _ in range(50):  # a fork bomb may still be forking: repeat until empty
-            pids = [int(p) for p in _read(group / "cgroup.procs").split()]
-            if not pids:
-                break
-            for pid in pids:
-                try:
-                    os.kill(pid, signal.SIGKILL)
-                except ProcessLookupError:
-                    pass
-            time.sleep(0.02)
-        try:
-            group.rmdir()
-        except OSError:
-            pass
-        self._cgroup = None
-
-    def log_tail(self, n: int = 4000) -> str:
-        """The end of the agent's stdout and stderr."""
-        if self.scratch is None:
+    def _namespace(self) -> str:
+        """The sandbox's PID namespace ("" unisolated, or when it is gone already)."""
+        if not self.isolated or self.proc is None:
             return ""
-        p = self.scratch / "agent.log"
+        pid = _sandbox_pid(self.proc.pid, 1)
+        return _read_link(f"/proc/{pid}/ns/pid") if pid is not None else ""
+
+    def log_tail(self, n: int = LOG_BYTES) -> str:
+        """The end of the agent's stdout and stderr."""
+        if self._log is None:
+            return ""
         try:
-            with open(p, "rb") as f:
-                f.seek(max(0, p.stat().st_size - n))
-                return f.read().decode("utf-8", "replace")
+            size = os.fstat(self._log.fileno()).st_size
+            return os.pread(self._log.fileno(), n, max(0, size - n)).decode("utf-8", "replace")
         except OSError:
             return ""
 
@@ -326,57 +224,41 @@ class AgentProcess:
             AgentFault: the agent hung, died, wrote garbage, raised or exited.
         """
         t0 = time.perf_counter()
-        budget = _Budget(timeout, wall_cap, self._cpu_clock() if wall_cap else None, t0)
-        data = pickle.dumps(self._pack_camera(message), protocol=pickle.HIGHEST_PROTOCOL)
+        budget = Budget(timeout, wall_cap, self._cpu_clock() if wall_cap else None, t0)
+        data = pickle.dumps(to_shared(message, self._cam, [0], ""),
+                            protocol=pickle.HIGHEST_PROTOCOL)
         try:
-            _write_all(self._w, frame(data))
-        except (BrokenPipeError, OSError):
+            write_all(self._w, frame(data))
+        except OSError:
             raise self._death() from None
-        header = self._read_exact(4, budget)
-        (n,) = LENGTH.unpack(header)
+        (n,) = LENGTH.unpack(self._read_exact(4, budget))
         if n > MAX_REPLY_BYTES:
             raise AgentFault("agent_error", f"garbage on the agent channel: a {n}-byte answer")
         payload = self._read_exact(n, budget)
         rtt = time.perf_counter() - t0
         try:
             reply = decode_reply(payload)
-        except (UnicodeDecodeError, ValueError, struct.error, RecursionError, TypeError):
-            raise AgentFault("agent_error", "garbage on the agent channel: not a framed JSON "
-                                            "answer") from None
-        if not isinstance(reply, dict):
-            raise AgentFault("agent_error", "garbage on the agent channel: not a JSON object")
-        if "error" in reply:
-            kind = str(reply.get("type", ""))
-            text = " ".join(str(reply["error"]).split())[:500]
-            raise AgentFault("agent_memory" if kind == "MemoryError" else "agent_error", text)
-        if "forbidden" in reply:
-            raise AgentFault("agent_error", "forbidden call: " + " ".join(
-                str(reply["forbidden"]).split())[:500])
-        if "exit" in reply:
-            raise AgentFault("agent_exit", f"the agent called sys.exit({reply['exit']!r})")
-        if "invalid" in reply:
-            raise AgentFault("invalid_action", " ".join(str(reply["invalid"]).split())[:500])
+        except ChannelError as e:
+            raise AgentFault("agent_error", f"garbage on the agent channel: {e}") from None
+        _raise_reported_fault(reply)
         return reply, rtt
 
     def _cpu_clock(self) -> int | None:
-        """The CPU-time clock of the agent's Python process (found once, inside bubblewrap's
-        namespaces too), or None where the kernel does not give one."""
+        """The CPU-time clock of the agent's Python process, or None where the kernel does
+        not give one (found once: PID 2 of the sandbox, or the child itself unisolated)."""
         if self._clock is None and self.proc is not None:
-            pid = _agent_pid(self.proc.pid)
-            self._clock = -1 if pid is None else _process_cpu_clock(pid)
+            pid = self.proc.pid if not self.isolated else _sandbox_pid(self.proc.pid, 2)
+            self._clock = -1 if pid is None else process_cpu_clock(pid)
         return None if self._clock in (None, -1) else self._clock
 
-    def _pack_camera(self, message: dict[str, Any]) -> dict[str, Any]:
-        """Move the large arrays of a message (camera frames) into the shared-memory block;
-        the message carries references (see :func:`to_shared`)."""
-        used = [0]
-        return to_shared(message, self._cam, used, "")
-
-    def _read_exact(self, n: int, budget: "_Budget") -> bytes:
+    def _read_exact(self, n: int, budget: Budget) -> bytes:
         out = bytearray()
         while len(out) < n:
-            ready, _, _ = select.select([self._r], [], [], budget.wait())
+            ready, _, _ = select.select([self._r], [], [], min(budget.wait(), MEMORY_CHECK))
             if not ready:
+                if self.cgroup is not None and self.cgroup.stuck_at_limit():
+                    self._terminate()  # waiting in the kernel for memory it cannot have
+                    raise AgentFault("agent_memory", self._over_memory())
                 if budget.left() > 0.0:
                     continue  # starved by a busy machine, not out of budget
                 self._terminate()
@@ -387,12 +269,26 @@ class AgentProcess:
             out += chunk
         return bytes(out)
 
+    def _over_memory(self) -> str:
+        return f"the agent exceeded its memory limit of {self.limits.memory_mb} MiB (killed)"
+
     def _terminate(self) -> None:
-        if self.proc is not None and self.proc.poll() is None:
+        """SIGKILL the sandbox: its PID 1 first (the kernel then kills the whole namespace,
+        and bubblewrap or unshare, seeing it end, exits and reaps it: no orphan left),
+        then the process group of what the harness started."""
+        if self.proc is None or self.proc.poll() is not None:
+            return
+        init = _sandbox_pid(self.proc.pid, 1) if self.isolated else None
+        if init is not None:
             try:
-                os.killpg(self.proc.pid, signal.SIGKILL)
-            except ProcessLookupError:
+                os.kill(init, signal.SIGKILL)
+                self.proc.wait(timeout=2)
+            except (ProcessLookupError, subprocess.TimeoutExpired):
                 pass
+        try:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
 
     def _death(self) -> AgentFault:
         """Name how the agent's process ended (it closed the channel)."""
@@ -400,193 +296,103 @@ class AgentProcess:
             code = self.proc.wait(timeout=5)
         except subprocess.TimeoutExpired:
             self._terminate()
-            return AgentFault("agent_exit", "the agent closed its channel")
+            code = None
+        if self.cgroup is not None and self.cgroup.oom_killed():
+            return AgentFault("agent_memory", self._over_memory())
         log = self.log_tail()
-        if code in (-signal.SIGXCPU, 128 + signal.SIGXCPU) or "SIGXCPU" in log:
+        if code == JAIL_FAILED and "sandbox: " in log:
+            line = log[log.rindex("sandbox: "):].splitlines()[0]
+            return AgentFault("agent_error", f"the sandbox could not start: {line[:300]}")
+        signum = -code if code is not None and code < 0 else (
+            code - 128 if code is not None and self.isolated and 128 < code < 160 else None)
+        if signum == signal.SIGXCPU or "SIGXCPU" in log:
             return AgentFault("agent_timeout", f"CPU time limit of {self.limits.cpu_seconds} s")
         if any(s in log for s in ("MemoryError", "Cannot allocate memory", "bad_alloc",
                                   "out of memory")):
             return AgentFault("agent_memory",
                               f"the agent ran out of its {self.limits.memory_mb} MiB of memory")
-        if code is not None and code < 0:
+        if code is None:
+            return AgentFault("agent_exit", "the agent closed its channel")
+        if signum is not None:
             return AgentFault("agent_exit",
-                              f"the agent process died of signal {signal.Signals(-code).name}")
+                              f"the agent process died of signal {_signal_name(signum)}")
         return AgentFault("agent_exit", f"the agent process exited with code {code}")
 
 
-class _Budget:
-    """What one request may use: ``seconds`` of wall clock, or, given a CPU clock, ``seconds``
-    of the agent's CPU time within ``wall_cap`` seconds of wall clock."""
+def _raise_reported_fault(reply: dict[str, Any]) -> None:
+    """The child's report of the agent's own fault, as an AgentFault."""
+    def text(key):
+        return " ".join(str(reply[key]).split())[:500]
 
-    def __init__(self, seconds: float, wall_cap: float | None, clock: int | None, t0: float):
-        self.seconds, self.t0, self.clock = float(seconds), t0, clock
-        self.wall_cap = float(wall_cap) if clock is not None and wall_cap else self.seconds
-        self.cpu0 = _cpu_time(clock)
-
-    def left(self) -> float:
-        """Seconds left: the smaller of the CPU budget left and the wall-clock cap left."""
-        wall_left = self.wall_cap - (time.perf_counter() - self.t0)
-        if self.clock is None:
-            return wall_left
-        cpu = _cpu_time(self.clock)
-        if cpu is None:  # the process is gone: the read sees its end next
-            return max(wall_left, 0.0)
-        return min(self.seconds - (cpu - self.cpu0), wall_left)
-
-    def wait(self) -> float:
-        """How long to wait for the agent before looking at its budget again [s] (its CPU time
-        cannot grow faster than the wall clock, so waiting what is left never overspends it
-        by more than its other threads use)."""
-        return max(0.0, self.left())
-
-    def spent(self) -> str:
-        """Why the request ran out, for the report."""
-        wall = time.perf_counter() - self.t0
-        if self.clock is None:
-            return f"no answer within the budget of {self.seconds:g} s (wall clock)"
-        cpu = (_cpu_time(self.clock) or self.cpu0) - self.cpu0
-        if cpu >= self.seconds:
-            return (f"no answer within the budget of {self.seconds:g} s of CPU time "
-                    f"({wall:.1f} s wall clock)")
-        return (f"no answer within the wall-clock cap of {self.wall_cap:g} s (it used "
-                f"{cpu:.2f} s of CPU time: sleeping or blocked)")
+    if "error" in reply:
+        kind = str(reply.get("type", ""))
+        raise AgentFault("agent_memory" if kind == "MemoryError" else "agent_error", text("error"))
+    if "forbidden" in reply:
+        raise AgentFault("agent_error", "forbidden call: " + text("forbidden"))
+    if "exit" in reply:
+        raise AgentFault("agent_exit", f"the agent called sys.exit({text('exit')})")
+    if "invalid" in reply:
+        raise AgentFault("invalid_action", text("invalid"))
 
 
-def _cpu_time(clock: int | None) -> float | None:
-    if clock is None:
-        return None
+def _signal_name(signum: int) -> str:
     try:
-        return time.clock_gettime(clock)
-    except OSError:
-        return None
+        return signal.Signals(signum).name
+    except ValueError:
+        return str(signum)
 
 
-def _agent_pid(root: int) -> int | None:
-    """The agent's Python process among ``root`` and its descendants (bubblewrap runs it as a
-    grandchild), by its command line."""
-    stack, found = [root], None
+def _sandbox_pid(root: int, inner: int) -> int | None:
+    """The process among ``root``'s descendants that is PID ``inner`` in its own PID
+    namespace (the agent's Python is PID 2 in both isolated set-ups)."""
+    stack = [root]
     while stack:
         pid = stack.pop()
-        if b"pr2_drake.compete.child" in _read_bytes(f"/proc/{pid}/cmdline") and \
-                not _read_bytes(f"/proc/{pid}/cmdline").startswith(b"bwrap"):
-            found = pid
+        status = _read_text(f"/proc/{pid}/status")
+        for line in status.splitlines():
+            if line.startswith("NSpid:"):
+                ids = line.split()[1:]
+                if len(ids) > 1 and ids[-1] == str(inner):
+                    return pid
         try:
             tasks = os.listdir(f"/proc/{pid}/task")
         except OSError:
             continue
         for t in tasks:
-            stack += [int(c) for c in _read_bytes(f"/proc/{pid}/task/{t}/children").split()]
-    return found
+            stack += [int(c) for c in _read_text(f"/proc/{pid}/task/{t}/children").split()]
+    return None
 
 
-def _read_bytes(path: str) -> bytes:
+def _wait_until_empty(namespace: str, timeout: float = 5.0) -> None:
+    """Wait until no process is left running in the PID namespace ``namespace`` (killed when
+    its PID 1 died, they may take a moment to go; a zombie holds nothing)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if not any(_read_link(f"/proc/{p}/ns/pid") == namespace and _state(p) != "Z"
+                   for p in os.listdir("/proc") if p.isdigit()):
+            return
+        time.sleep(0.02)
+
+
+def _state(pid: str) -> str:
+    """A process's state letter (R, S, Z...), "" when it is gone."""
+    stat = _read_text(f"/proc/{pid}/stat")
+    return stat.rpartition(")")[2].split()[0] if ")" in stat else ""
+
+
+def _read_link(path: str) -> str:
     try:
-        with open(path, "rb") as f:
+        return os.readlink(path)
+    except OSError:
+        return ""
+
+
+def _read_text(path: str) -> str:
+    try:
+        with open(path) as f:
             return f.read()
     except OSError:
-        return b""
-
-
-def _process_cpu_clock(pid: int) -> int:
-    """The clock id of ``pid``'s CPU time (all its threads), or -1."""
-    import ctypes
-
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        clock = ctypes.c_int()
-        if libc.clock_getcpuclockid(int(pid), ctypes.byref(clock)) != 0:
-            return -1
-        time.clock_gettime(clock.value)
-        return clock.value
-    except (OSError, AttributeError):
-        return -1
-
-
-def decode_reply(payload: bytes) -> Any:
-    """An answer of the child (see ``Child.send``): JSON header, float64 arrays after it.
-    Raises ValueError (or struct.error) on anything else; nothing in it is executed."""
-    (n,) = LENGTH.unpack_from(payload, 0)
-    if n > len(payload) - 4:
-        raise ValueError("header longer than the answer")
-    head = json.loads(payload[4:4 + n].decode("utf-8"))
-    blob = memoryview(payload)[4 + n:]
-
-    def arrays(x):
-        if isinstance(x, dict):
-            ref = x.get("__f8__")
-            if ref is not None and len(x) == 1:
-                offset, count = (int(v) for v in ref)
-                if offset < 0 or count < 0 or offset + 8 * count > len(blob):
-                    raise ValueError("array reference outside the answer")
-                return np.frombuffer(blob, "<f8", count, offset).copy()
-            return {k: arrays(v) for k, v in x.items()}
-        if isinstance(x, list):
-            return [arrays(v) for v in x]
-        return x
-
-    return arrays(head)
-
-
-SHARED_MIN_BYTES = 1 << 16  # arrays this large go through shared memory [bytes]
-
-
-def to_shared(x: Any, block: mmap.mmap, used: list[int], key: str) -> Any:
-    """``x`` with every numpy array of at least :data:`SHARED_MIN_BYTES` written into
-    ``block`` (after ``used[0]`` bytes) and replaced by a reference
-    ``{"__shm__": (key, offset, shape, dtype)}``; dataclasses (an ``RgbdFrame``) are copied
-    with their fields replaced."""
-    if isinstance(x, np.ndarray) and x.nbytes >= SHARED_MIN_BYTES:
-        a = np.ascontiguousarray(x)
-        offset = used[0]
-        if offset + a.nbytes > len(block):
-            raise ValueError(f"arrays exceed the {len(block) >> 20} MiB shared block")
-        block[offset:offset + a.nbytes] = memoryview(a).cast("B")
-        used[0] = offset + (a.nbytes + 63) // 64 * 64
-        return {"__shm__": (key, offset, a.shape, a.dtype.str)}
-    if isinstance(x, dict):
-        return {k: to_shared(v, block, used, f"{key}/{k}") for k, v in x.items()}
-    if hasattr(x, "__dataclass_fields__") and any(
-            isinstance(getattr(x, f), np.ndarray) for f in x.__dataclass_fields__):
-        from dataclasses import replace
-
-        return replace(x, **{f: to_shared(getattr(x, f), block, used, f"{key}.{f}")
-                             for f in x.__dataclass_fields__})
-    return x
-
-
-def _usable_by_others() -> bool:
-    """Whether another user can run this Python and read the project (every folder on the
-    way searchable by others)."""
-    for path in (Path(sys.executable).resolve(), Path(sys.prefix).resolve(), _PROJECT_ROOT):
-        for p in (path, *path.parents):
-            try:
-                mode = p.stat().st_mode
-            except OSError:
-                return False
-            if p.is_dir() and not mode & 0o001:
-                return False
-    return True
-
-
-def isolation_note(limits: "SandboxLimits") -> str:
-    """One line saying how agents are isolated here."""
-    if limits.isolation != "none" and bwrap_available():
-        return ("sandbox: bubblewrap (no network, read-only file system but a scratch folder, "
-                "own PID namespace) + resource limits + timeouts")
-    who = ("as user nobody" if os.getuid() == 0 and _usable_by_others() else
-           "as the harness's user")
-    return (f"sandbox: bubblewrap not available (apt-get install bubblewrap); falling back to "
-            f"resource limits (memory, CPU time, processes), timeouts and audit hooks, {who}")
-
-
-def _write_all(fd: int, data: bytes) -> None:
-    view = memoryview(data)
-    while view:
-        view = view[os.write(fd, view):]
-
-
-def _contains(folder: Path, paths) -> bool:
-    return any(p == folder or folder in p.parents for p in paths)
+        return ""
 
 
 def _count_own_processes() -> int:
@@ -600,3 +406,14 @@ def _count_own_processes() -> int:
             except OSError:
                 pass
     return n
+
+
+def isolation_note(limits: SandboxLimits) -> str:
+    """One line saying how agents are isolated here (raises IsolationUnavailable where they
+    cannot be and ``limits.trust`` is off)."""
+    return isolation.describe(isolation.choose(limits.isolation, limits.trust))
+
+
+def bwrap_available() -> bool:
+    """Whether bubblewrap isolates agents here."""
+    return isolation.works("bwrap")

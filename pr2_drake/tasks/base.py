@@ -293,6 +293,13 @@ class TaskDefinition:
             drawn (plain data, in the report as ``variation``).
     """
 
+    #: True when ``build_scene`` draws nothing from the seed's generator but the start pose
+    #: (``spec.sample_start(rng)``, its first draw): a scene built for one seed is then the
+    #: scene of every seed, and a built episode can be reused with :meth:`start_of` (the
+    #: learning envs' fast reset; tests/test_learning.py checks it gives the fresh build's
+    #: episode bit for bit). A task whose seed places anything else leaves it False.
+    SEED_DRAWS_START_ONLY = False
+
     def __init__(self, spec: TaskSpec, variation: dict[str, Any] | None = None):
         self.spec = spec
         self.variation = variation
@@ -312,6 +319,14 @@ class TaskDefinition:
         """Rewrite ``scene`` (a copy of the spec's ``scene`` block) with values drawn from
         ``rng``; return what was drawn (plain data), or None: this task has no variation."""
         return None
+
+    def start_of(self, seed: int) -> StartPose | None:
+        """The start pose of ``seed`` when that is all the seed changes in the scene (see
+        :attr:`SEED_DRAWS_START_ONLY`), else None. A varied scene (:meth:`varied`) is the
+        scene of one seed only: None."""
+        if not self.SEED_DRAWS_START_ONLY or self.variation is not None:
+            return None
+        return self.spec.sample_start(np.random.default_rng(seed))
 
     @property
     def id(self) -> int:

@@ -184,6 +184,8 @@ class ValveReferee(Referee):
 
 
 class Task(TaskDefinition):
+    SEED_DRAWS_START_ONLY = True  # the seed draws the start pose alone
+
     def build_scene(self, plant: MultibodyPlant, rng: np.random.Generator) -> Scene:
         s = self.spec.scene
         v = s["valve"]

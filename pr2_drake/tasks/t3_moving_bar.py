@@ -281,6 +281,8 @@ def _add_track(plant: MultibodyPlant, layout: "BarLayout", colors: dict) -> None
 
 
 class Task(TaskDefinition):
+    SEED_DRAWS_START_ONLY = True  # the seed draws the start pose alone
+
     def build_scene(self, plant: MultibodyPlant, rng: np.random.Generator) -> Scene:
         s = self.spec.scene
         colors = s["colors"]

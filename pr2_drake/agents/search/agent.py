@@ -130,8 +130,6 @@ class ObjectSearchAgent(Diagram):
             ObjectDetector,
             object_models_from_priors,
         )
-        from pr2_drake.controllers.walking import WalkingController
-        from pr2_drake.controllers.walking_params import WalkingParams
         from pr2_drake.tasks import get_task
 
         if "object_models" not in priors or "coffee_table_center" not in priors:
@@ -156,5 +154,14 @@ class ObjectSearchAgent(Diagram):
             1.0 / float(cam["fps"]), (spec.arena["min"], spec.arena["max"]),
             SearchAgentParams.load(params), NavigationParams.load(), HeadCameraKinematics(),
             error, furniture_height(spec.scene, instruction), MappingParams.load())
+        build_sequencer_agent(self, seq, self.controller(priors, walking_params))
+
+    @staticmethod
+    def controller(priors: dict[str, Any], walking_params: str | None = None, **_):
+        """The walking controller this agent drives, its arms in the QP (the command-level
+        learning envs drive the same one); other parameter files are ignored."""
+        from pr2_drake.controllers.walking import WalkingController
+        from pr2_drake.controllers.walking_params import WalkingParams
+
         wparams = WalkingParams.load(overrides=[walking_params] if walking_params else [])
-        build_sequencer_agent(self, seq, WalkingController(wparams, arms="effort"))
+        return WalkingController(wparams, arms="effort")
