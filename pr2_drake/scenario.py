@@ -166,6 +166,17 @@ class Scenario:
             raise ScenarioError(f"control_dt must be at least one physics step "
                                 f"({config.time_step:g} s), got {self.control_dt!r}")
 
+    def switches(self) -> list[str]:
+        """The scenario switches on in this episode, by name: ``scene.variation`` (a scene
+        drawn from the seed) and ``randomize`` (domain randomisation, where the scenario has
+        that section); empty for the task as given. Reports, ``eval``'s summary, ``compete``'s
+        results and the leaderboard state them beside the scores."""
+        on = ["scene.variation"] if self.scene.variation else []
+        randomize = getattr(self, "randomize", None)  # the section of pr2_drake.randomize
+        if randomize is not None and randomize.enabled:
+            on.append("randomize")
+        return on
+
     def testbed_config(self) -> TestbedConfig:
         """The testbed block's configuration for this scenario."""
         p = self.plant

@@ -13,6 +13,11 @@ link). Results go to ``OUT/episodes.jsonl`` as each episode ends, each row with 
 again; a row without a valid MAC is), then ``OUT/results.json`` and ``OUT/results.csv`` (one
 row per episode). Only the harness writes them, from outside every sandbox.
 
+Scenario switches (``sets``, the CLI's ``--set scene.variation=true`` and ``--set
+randomize.enabled=true``) are the same for every submission and episode; each row names the
+switches on as ``scenario`` (:meth:`pr2_drake.scenario.Scenario.switches`), and a results
+folder holds the episodes of one set of switches (resuming with others is refused).
+
 Backends (``jobs`` episodes at once on either): ``local`` runs episodes in this process or a
 pool of spawned processes; ``ray`` sends each episode as a Ray task (:func:`run_job`, the same
 function: the episode's agent is still sandboxed in a child process of the worker) to a local
@@ -38,8 +43,8 @@ from pr2_drake.compete.limits import SandboxLimits
 from pr2_drake.compete.sandbox import isolation_note
 from pr2_drake.compete.submission import read_submission_yaml
 
-CSV_FIELDS = ("submission", "task", "seed", "score", "max_score", "termination", "items",
-              "sim_time", "wall_time", "agent_compute_mean_ms", "agent_compute_max_ms",
+CSV_FIELDS = ("submission", "task", "seed", "scenario", "score", "max_score", "termination",
+              "items", "sim_time", "wall_time", "agent_compute_mean_ms", "agent_compute_max_ms",
               "step_time_mean_ms", "ipc_overhead_mean_us", "steps", "sandbox", "message")
 
 
@@ -138,6 +143,7 @@ class Job:
     seconds: float | None
     limits: SandboxLimits
     hide: tuple[str, ...] = ()
+    sets: tuple[str, ...] = ()  # scenario overrides of every episode (scene.*, randomize.*)
 
     @property
     def key(self) -> tuple[str, int, int]:
@@ -147,11 +153,12 @@ class Job:
 def run_job(job: Job) -> dict[str, Any]:
     """One sandboxed episode -> its results row (the report plus ``submission``)."""
     from pr2_drake.compete.proxy import run_sandboxed_episode
-    from pr2_drake.scenario import Scenario
+    from pr2_drake.scenario import Scenario, load_scenario
 
     spec = job.submission.agent_for(job.task)
-    scenario = Scenario(task=job.task, seed=job.seed, agent=spec, seconds=job.seconds,
-                        agent_params=dict(job.submission.agent_params))
+    scenario = load_scenario(None, overrides=job.sets, defaults=Scenario(
+        task=job.task, seed=job.seed, agent=spec, seconds=job.seconds,
+        agent_params=dict(job.submission.agent_params)))
     start = time.perf_counter()
     try:
         report = run_sandboxed_episode(scenario, submission=job.submission.folder,
@@ -166,6 +173,8 @@ def run_job(job: Job) -> dict[str, Any]:
                   "termination": "agent_error", "items": [], "sim_time": 0.0,
                   "wall_time": round(time.perf_counter() - start, 3),
                   "message": " ".join(str(e).split())}
+        if scenario.switches():
+            report["scenario"] = scenario.switches()
     return {"submission": job.submission.name, **report}
 
 
@@ -176,10 +185,13 @@ def run_competition(root: str | Path, tasks: Iterable[int], seeds: Iterable[int]
                     out: str | Path, *, jobs: int = 1, seconds: float | None = None,
                     limits: SandboxLimits | None = None,
                     progress: TextIO | None = sys.stderr, backend: str = "local",
-                    ray_address: str | None = None) -> list[dict[str, Any]]:
+                    ray_address: str | None = None,
+                    sets: tuple[str, ...] = ()) -> list[dict[str, Any]]:
     """Run (or resume) a competition; returns all rows and writes the results files.
 
     Args:
+        sets: scenario overrides of every episode (``scene.variation=true``, ...; checked by
+            :func:`pr2_drake.compete.command.scenario_sets`).
         backend: "local" (processes here) or "ray" (Ray tasks; see the module docstring).
         ray_address: with ``backend="ray"``, a running cluster's address (None: start a local
             Ray with ``jobs`` CPUs for this run).
@@ -207,8 +219,9 @@ def run_competition(root: str | Path, tasks: Iterable[int], seeds: Iterable[int]
     log = out / "episodes.jsonl"
     key = ledger.run_key(out)
     done, rejected = ledger.read_rows(log, key)
+    switches = _check_switches(done.values(), sets, out)
     hide = tuple(str(p.resolve()) for p in (Path(root), out))
-    todo = [Job(s, t, seed, seconds, limits, hide) for s in subs for t in tasks for seed in seeds
+    todo = [Job(s, t, seed, seconds, limits, hide, tuple(sets)) for s in subs for t in tasks for seed in seeds
             if s.agent_for(t) is not None]
     todo = [j for j in todo if j.key not in done]
     say = (lambda text: print(text, file=progress, flush=True)) if progress else (lambda _: 0)
@@ -218,6 +231,7 @@ def run_competition(root: str | Path, tasks: Iterable[int], seeds: Iterable[int]
             f"this harness) ignored: those episodes run again")
     say(f"{len(subs)} submissions, tasks {list(tasks)}, seeds {list(seeds)}: "
         f"{len(done)} episodes done before, {len(todo)} to run with {jobs} job(s)"
+        + (f", scenario {'+'.join(switches)}" if switches else "")
         + (f" on Ray ({ray_address or 'local'})" if backend == "ray" else ""))
     start = time.perf_counter()
     results = (_ray_results(todo, jobs, ray_address) if backend == "ray"
@@ -234,8 +248,24 @@ def run_competition(root: str | Path, tasks: Iterable[int], seeds: Iterable[int]
     write_results(rows, out, meta={"submissions": [s.name for s in subs], "tasks": list(tasks),
                                    "seeds": list(seeds), "seconds": seconds,
                                    "limits": vars(limits), "isolation": note,
-                                   "trust_submissions": limits.trust})
+                                   "trust_submissions": limits.trust,
+                                   "scenario": switches})
     return rows
+
+
+def _check_switches(rows, sets: tuple[str, ...], out: Path) -> list[str]:
+    """The scenario switches ``sets`` turn on; ValueError when the episodes already in ``out``
+    were run with others (one results folder, one scenario)."""
+    from pr2_drake.scenario import load_scenario
+
+    switches = load_scenario(None, overrides=sets).switches()
+    for r in rows:
+        if r.get("scenario", []) != switches:
+            had = "+".join(r.get("scenario", [])) or "none"
+            raise ValueError(f"--out {out}: holds episodes run with scenario switches {had}, "
+                             f"this run has {'+'.join(switches) or 'none'}: give another "
+                             f"folder")
+    return switches
 
 
 def _results(todo: list[Job], jobs: int):
@@ -295,6 +325,7 @@ def csv_row(r: dict[str, Any]) -> dict[str, Any]:
 
     return {
         "submission": r["submission"], "task": r["task"], "seed": r["seed"],
+        "scenario": "+".join(r.get("scenario", [])),
         "score": r["score"], "max_score": r["max_score"], "termination": r["termination"],
         "items": ";".join(f"{e['item']}@{e['time']:.2f}" for e in r.get("items", [])),
         "sim_time": r.get("sim_time"), "wall_time": r.get("wall_time"),
