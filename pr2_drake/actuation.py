@@ -41,6 +41,8 @@ class ActuationAdapter(LeafSystem):
         default_gains: {group: (stiffness, damping)} used when a command carries none.
         gain_limits: {group: (max_stiffness, max_damping)} per-joint arrays (original order)
             that keep the explicit spring-damper stable; None = no cap.
+        effort_scale: clamp at this multiple of the peak torques (a domain randomisation's
+            strongest motor, :mod:`pr2_drake.randomize_systems`; its own clamp follows).
     """
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
@@ -51,6 +53,7 @@ class ActuationAdapter(LeafSystem):
         maps: KuavoMaps,
         default_gains: dict[str, tuple[float, float]],
         gain_limits: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
+        effort_scale: float = 1.0,
     ):
         super().__init__()
         self._groups = {}
@@ -67,7 +70,7 @@ class ActuationAdapter(LeafSystem):
                 q=maps.q_joints[sl],
                 v=maps.nq + maps.v_joints[sl],
                 act=maps.actuators[sl],
-                limit=params.effort_limits(group),
+                limit=params.effort_limits(group) * effort_scale,
                 stiffness=np.minimum(float(stiffness), k_max),
                 damping=np.minimum(float(damping), d_max),
                 k_max=np.asarray(k_max, dtype=float),

@@ -177,6 +177,13 @@ class Env:
         return float(self._scenario.control_dt or self.testbed.config.time_step)
 
     @property
+    def physics(self) -> dict[str, Any] | None:
+        """The episode's randomised physics as in the report's ``physics`` (None with the
+        scenario's ``randomize`` off; :mod:`pr2_drake.randomize`)."""
+        physics = self._episode.physics
+        return None if physics is None else physics.report()
+
+    @property
     def priors(self) -> dict[str, Any]:
         return dict(self.testbed.scene.priors)
 

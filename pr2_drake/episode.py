@@ -34,6 +34,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, System
 
 from pr2_drake.ports import P_WB
+from pr2_drake.randomize import PhysicsSample, apply_physics, draw_physics
 from pr2_drake.scenario import Scenario
 from pr2_drake.sleep import ObjectSleeper
 from pr2_drake.tasks.base import EpisodeStatus
@@ -44,7 +45,7 @@ from pr2_drake.testbed import Testbed
 _PACKAGE = Path(__file__).resolve().parent
 _TESTBED_FILES = {str(_PACKAGE / f) for f in (
     "actuation.py", "grasp.py", "ports.py", "camera.py", "testbed.py", "scene.py", "episode.py",
-    "observation.py")}
+    "observation.py", "randomize.py", "randomize_systems.py")}
 _TESTBED_DIRS = (str(_PACKAGE / "tasks"),)
 _SLEEP_FILE = str(_PACKAGE / "sleep.py")
 
@@ -73,6 +74,8 @@ class Episode:
         limit: simulated time at which the episode ends "timeout" [s].
         status: the latest verdict (:class:`EpisodeStatus`); ``message`` says why a fault
             ended the episode.
+        physics: the domain randomisation's draw (:class:`pr2_drake.randomize.PhysicsSample`),
+            set in the context at every :meth:`initialize`; None with ``randomize`` off.
     """
 
     def __init__(self, scenario: Scenario, wire: Wiring | None = None,
@@ -104,16 +107,28 @@ class Episode:
         self.sleeper = ObjectSleeper(testbed, scenario.sleep)
         self.status = EpisodeStatus(max_score=task.spec.max_score if task is not None else 0.0)
         self.message = ""
+        self.physics: PhysicsSample | None = None
+        if scenario.randomize.enabled:
+            self.redraw_physics(scenario.seed)
 
     # -- running ------------------------------------------------------------------------------
     @property
     def time(self) -> float:
         return self.context.get_time()
 
+    def redraw_physics(self, seed: int) -> PhysicsSample:
+        """Draw the randomised physics of ``seed`` for this diagram (:attr:`physics`); the
+        next :meth:`initialize` sets it. A fast reset to another seed calls this."""
+        self.physics = draw_physics(self.scenario.randomize, seed, self.testbed, self.limit)
+        return self.physics
+
     def initialize(self) -> EpisodeStatus:
-        """Reset the verdict and initialize the simulator; returns the first verdict."""
+        """Reset the verdict, set the randomised physics (if any) and initialize the
+        simulator; returns the first verdict."""
         self.message = ""
         self.status = EpisodeStatus(max_score=self.status.max_score)
+        if self.physics is not None:
+            apply_physics(self.testbed, self.context, self.physics)
         self.sleeper.reset(self.context)
         try:
             self.simulator.Initialize()
@@ -223,6 +238,8 @@ class Episode:
             report["variation"] = task.variation  # the scene drawn (scene.variation)
         if self.message:
             report["message"] = self.message
+        if self.physics is not None:
+            report["physics"] = self.physics.report()
         return report
 
     # -- faults -------------------------------------------------------------------------------

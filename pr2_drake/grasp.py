@@ -164,6 +164,18 @@ class GraspSystem(LeafSystem):
             raise ValueError(f"set_sleeping: graspables {bad} are not free bodies")
         context.get_mutable_abstract_state(1).set_value(ids)
 
+    def set_object_masses(self, masses: dict[int, float]) -> None:
+        """Cancel the weight of these masses [kg] (body index -> mass) for sleeping free
+        graspables from now on: the masses a domain randomisation set in the plant's context
+        (:func:`pr2_drake.randomize.apply_physics`); others keep their default mass."""
+        g_W = np.array(self._plant.gravity_field().gravity_vector())
+        for i, g in enumerate(self._graspables):
+            body = self._plant.get_body(g.body)
+            if i in self._weight:
+                mass = masses.get(int(g.body), float(body.default_mass()))
+                self._weight[i] = (self._weight[i][0], -(float(mass) * g_W))
+        self._lift_cache = {}
+
     def sleeping(self, context) -> tuple[int, ...]:
         """Indices of the sleeping graspables in ``context``."""
         return context.get_abstract_state(1).get_value()

@@ -33,10 +33,13 @@ from typing import Callable
 def weak_calc(method) -> Callable:
     """An output-port calc callback that calls the bound ``method`` without keeping its
     system alive. The port belongs to that system, so the system outlives every call."""
-    ref = weakref.WeakMethod(method)
+    # The plain function and a weak reference to the system (not weakref.WeakMethod, whose
+    # __call__ is a Python frame of its own on every evaluation of the port).
+    func = method.__func__
+    ref = weakref.ref(method.__self__)
 
     def calc(context, output):
-        return ref()(context, output)
+        return func(ref(), context, output)
 
     calc.__qualname__ = f"weak_calc({method.__qualname__})"
     return calc

@@ -16,6 +16,7 @@ Example (see ``scenarios/valve_seed7.yaml``)::
     plant: {time_step: 0.001, contact_approximation: lagged}
     sleep: {enabled: true, rest_time: 0.5}   # resting free objects sleep (task 6)
     scene: {variation: false}   # true: the scene itself drawn from the seed (tasks 1, 2, 4-6)
+    randomize: {enabled: false}   # domain randomisation from the seed (pr2_drake.randomize)
     camera: {enabled: true, width: 320, height: 240, fps: 10}
     limits: {max_speed: 100.0}
 
@@ -32,6 +33,7 @@ from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 
 from pr2_drake.camera import CameraSettings
 from pr2_drake.paths import resolve_user_path
+from pr2_drake.randomize import RandomizeSettings
 from pr2_drake.scene import StartPose
 from pr2_drake.sleep import SleepSettings
 from pr2_drake.tasks.base import FALL_HEIGHT
@@ -118,6 +120,8 @@ class Scenario:
         sleep: when resting free objects sleep (no contacts computed until something comes
             near; :mod:`pr2_drake.sleep`); ``sleep: {enabled: false}`` turns it off.
         scene: scene variation (``--set scene.variation=true``).
+        randomize: domain randomisation (:mod:`pr2_drake.randomize`), off by default: physics,
+            latency, observation noise and pushes drawn from the seed.
     """
 
     task: typing.Union[int, str, None] = None
@@ -134,6 +138,7 @@ class Scenario:
     limits: EpisodeLimits = field(default_factory=EpisodeLimits)
     sleep: SleepSettings = field(default_factory=SleepSettings)
     scene: SceneSettings = field(default_factory=SceneSettings)
+    randomize: RandomizeSettings = field(default_factory=RandomizeSettings)
 
     def validate(self) -> None:
         """Raise :class:`ScenarioError` naming the first bad field."""
@@ -158,6 +163,7 @@ class Scenario:
             _positive(f"limits.{name}", getattr(self.limits, name))
         try:
             self.sleep.validate()
+            self.randomize.validate()
             config = self.testbed_config()
             config.validate()
         except ValueError as e:
@@ -168,14 +174,11 @@ class Scenario:
 
     def switches(self) -> list[str]:
         """The scenario switches on in this episode, by name: ``scene.variation`` (a scene
-        drawn from the seed) and ``randomize`` (domain randomisation, where the scenario has
-        that section); empty for the task as given. Reports, ``eval``'s summary, ``compete``'s
-        results and the leaderboard state them beside the scores."""
-        on = ["scene.variation"] if self.scene.variation else []
-        randomize = getattr(self, "randomize", None)  # the section of pr2_drake.randomize
-        if randomize is not None and randomize.enabled:
-            on.append("randomize")
-        return on
+        drawn from the seed) and ``randomize`` (domain randomisation); empty for the task as
+        given. Reports, ``eval``'s summary, ``compete``'s results and the leaderboard state
+        them beside the scores."""
+        return (["scene.variation"] if self.scene.variation else []) + (
+            ["randomize"] if self.randomize.enabled else [])
 
     def testbed_config(self) -> TestbedConfig:
         """The testbed block's configuration for this scenario."""
@@ -184,6 +187,7 @@ class Scenario:
             task=self.task, seed=int(self.seed), time_step=p.time_step,
             contact_approximation=p.contact_approximation, contact_model=p.contact_model,
             camera=self.camera, start=self.start, variation=bool(self.scene.variation),
+            randomize=self.randomize if self.randomize.enabled else None,
         )
 
     def time_limit(self, task_time_limit: typing.Optional[float]) -> float:

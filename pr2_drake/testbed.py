@@ -1,7 +1,8 @@
 """build_testbed(): the whole testbed as one Drake Diagram with the PR2 port contract.
 
 Inside: MultibodyPlant (discrete SAP) + SceneGraph, the task scene, KUAVO, the actuation adapter,
-the grasp system, the head RGB-D camera (optional), the task referee (when a task is given) and,
+the grasp system, the head RGB-D camera (optional), the task referee (when a task is given),
+the domain randomisation's blocks (when on: :mod:`pr2_drake.randomize_systems`) and,
 optionally, a MeshcatVisualizer.
 
 Input ports:  ``arms_command``, ``legs_command`` (JointGroupCommand), ``pick`` (str),
@@ -34,6 +35,8 @@ from pr2_drake.actuation import ActuationAdapter
 from pr2_drake.camera import CameraSettings, add_camera_scene_graph, add_head_camera
 from pr2_drake.materials import visual_style
 from pr2_drake.grasp import GraspSystem
+from pr2_drake.randomize import RandomizeSettings
+from pr2_drake.randomize_systems import RandomizationBlocks
 from pr2_drake.ports import BODY_STATE_SIZE, N_JOINTS
 from pr2_drake.robot.model import BASE_BODY, KuavoMaps, add_kuavo, standing_base_pose
 from pr2_drake.robot.params import RobotParams, load_robot_params
@@ -67,6 +70,8 @@ class TestbedConfig:
         scene_builder: without a task, ``f(plant, rng) -> Scene`` builds the scene instead of
             flat ground (benchmarks with their own terrain, e.g. ``bench stairs``).
         variation: the task's scene drawn from the seed (:meth:`TaskDefinition.varied`).
+        randomize: domain randomisation (:mod:`pr2_drake.randomize`): which of its blocks
+            are built; None or off = none.
     """
 
     __test__ = False  # not a pytest test class
@@ -83,6 +88,7 @@ class TestbedConfig:
     grasp_period: float = 0.01
     scene_builder: Callable[[MultibodyPlant, np.random.Generator], Scene] | None = None
     variation: bool = False
+    randomize: RandomizeSettings | None = None
 
     def __post_init__(self) -> None:
         if self.time_step is None:
@@ -171,12 +177,15 @@ class Testbed(Diagram):
                 self.scene: Scene = build(plant, rng)
             else:
                 self.scene = self.task.build_scene(plant, rng)
+        self.randomization = RandomizationBlocks(config.randomize, config.time_step, self.task)
+        self.randomization.raise_effort_limits(plant, self.robot)
         plant.Finalize()
         self.maps = KuavoMaps.from_plant(plant, self.robot)
         self._set_default_pose(config.start or self.scene.start)
 
         for add_system in self.scene.add_systems:
             add_system(builder, plant)
+        self.randomization.add_pushes(builder, self)
         self._add_actuation(builder)
         self._add_observations(builder)
         self._add_grasp(builder)
@@ -220,12 +229,15 @@ class Testbed(Diagram):
         plant, maps = self.plant, self.maps
         gains = {"arms": self.config.arm_gains, "legs": self.config.leg_gains}
         adapter = builder.AddNamedSystem(
-            "actuation", ActuationAdapter(self.params, maps, gains, self.stable_gain_limits())
+            "actuation", ActuationAdapter(self.params, maps, gains, self.stable_gain_limits(),
+                                          self.randomization.effort_scale)
         )
+        dr = self.randomization  # domain randomisation: delay, peak torques (or nothing)
         builder.Connect(plant.get_state_output_port(self.robot), adapter.GetInputPort("robot_state"))
-        builder.Connect(adapter.GetOutputPort("actuation"), plant.get_actuation_input_port(self.robot))
-        builder.ExportInput(adapter.GetInputPort("arms_command"), "arms_command")
-        builder.ExportInput(adapter.GetInputPort("legs_command"), "legs_command")
+        builder.Connect(dr.actuation(builder, adapter.GetOutputPort("actuation"), self),
+                        plant.get_actuation_input_port(self.robot))
+        for name in ("arms_command", "legs_command"):
+            builder.ExportInput(dr.command(builder, adapter.GetInputPort(name)), name)
         self._actuation = adapter
         # Applied efforts in the original order: the plant's sampled net actuation of the last
         # step (no direct feedthrough, so joint_state -> controller -> command is no loop).
@@ -248,7 +260,8 @@ class Testbed(Diagram):
         builder.Connect(robot_state, select.get_input_port())
         builder.Connect(select.get_output_port(), mux.get_input_port(0))
         builder.Connect(self._applied_effort, mux.get_input_port(1))
-        builder.ExportOutput(mux.get_output_port(), "joint_state")
+        noisy = self.randomization.observation  # domain randomisation's noise (or nothing)
+        builder.ExportOutput(noisy(builder, "joint_state", mux.get_output_port()), "joint_state")
 
         qb, vb = maps.q_base, maps.nq + maps.v_base
         order = [qb[4], qb[5], qb[6], qb[0], qb[1], qb[2], qb[3], vb[3], vb[4], vb[5], vb[0],
@@ -257,7 +270,7 @@ class Testbed(Diagram):
         B[np.arange(BODY_STATE_SIZE), order] = 1.0
         body = builder.AddNamedSystem("body_select", MatrixGain(B))
         builder.Connect(robot_state, body.get_input_port())
-        builder.ExportOutput(body.get_output_port(), "body_state")
+        builder.ExportOutput(noisy(builder, "body_state", body.get_output_port()), "body_state")
 
     def _add_grasp(self, builder: DiagramBuilder) -> None:
         grasp = builder.AddNamedSystem(

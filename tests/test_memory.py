@@ -111,9 +111,9 @@ def test_testbed_with_camera_is_collected():
 def test_env_reset_with_new_seed_frees_the_old_testbed():
     from pr2_drake.env import Env
 
-    env = Env(task=1, seed=0)
+    env = Env(task=None, seed=0)  # tasks 1-5 reset in place (pr2_drake.env.reseed)
     ref = weakref.ref(env.testbed)
-    env.reset(seed=1)  # a new seed rebuilds the scene
+    env.reset(seed=1)  # without a task a new seed rebuilds the scene
     gc.collect()
     assert ref() is None, "Env.reset(seed=new) kept the previous Testbed alive"
     ref = weakref.ref(env.testbed)

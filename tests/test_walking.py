@@ -158,6 +158,12 @@ def test_bad_commands():
         check_command([np.nan, 0.0, 0.0])
     with pytest.raises(ValueError, match=COMMAND_PORT):
         check_command([0.1, 0.2])
+    # A port's value (a float array of 3) takes a fast path with the same checks.
+    for bad in ([np.nan, 0.0, 0.0], [0.0, np.inf, 0.0], [0.0, 0.0, -np.inf]):
+        with pytest.raises(ValueError, match=COMMAND_PORT):
+            check_command(np.array(bad))
+    good = np.array([0.1, -0.05, 0.2])
+    np.testing.assert_array_equal(check_command(good), [0.1, -0.05, 0.2])
     core = WholeBodyController()
     lim = core.params.limits
     # Out-of-range commands are clipped to the limits of params/controllers/walking.yaml.

@@ -62,14 +62,15 @@ def goal_velocity(p_WB: np.ndarray, yaw: float, p_goal: np.ndarray,
         return np.zeros(3)
     error = math.atan2(d[1], d[0]) - yaw
     error = math.atan2(math.sin(error), math.cos(error))
-    yaw_rate = float(np.clip(params.yaw_gain * error, -params.max_yaw_rate, params.max_yaw_rate))
+    # (min/max: np.clip's values for these nonzero bounds, without its call overhead)
+    yaw_rate = min(max(params.yaw_gain * error, -params.max_yaw_rate), params.max_yaw_rate)
     if abs(error) > params.turn_in_place_angle:
         return np.array([0.0, 0.0, yaw_rate])
     speed = params.forward_speed * min(1.0, dist / params.slow_radius)
     vx = speed * math.cos(error)
     lateral = dist * math.sin(error)
-    vy = float(np.clip(params.lateral_gain * lateral, -params.max_lateral_speed,
-                       params.max_lateral_speed))
+    vy = min(max(params.lateral_gain * lateral, -params.max_lateral_speed),
+             params.max_lateral_speed)
     return np.array([max(0.0, vx), vy, yaw_rate])
 
 

@@ -16,7 +16,9 @@ row per episode). Only the harness writes them, from outside every sandbox.
 Scenario switches (``sets``, the CLI's ``--set scene.variation=true`` and ``--set
 randomize.enabled=true``) are the same for every submission and episode; each row names the
 switches on as ``scenario`` (:meth:`pr2_drake.scenario.Scenario.switches`), and a results
-folder holds the episodes of one set of switches (resuming with others is refused).
+folder holds the episodes of one set of switches (resuming with others is refused). With
+domain randomisation (``randomize``, :mod:`pr2_drake.randomize`) each episode's physics is
+drawn from its seed, reported in its row as ``physics``, and never sent to the sandbox.
 
 Backends (``jobs`` episodes at once on either): ``local`` runs episodes in this process or a
 pool of spawned processes; ``ray`` sends each episode as a Ray task (:func:`run_job`, the same
@@ -33,7 +35,7 @@ import json
 import os
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, TextIO
 
@@ -219,7 +221,10 @@ def run_competition(root: str | Path, tasks: Iterable[int], seeds: Iterable[int]
     log = out / "episodes.jsonl"
     key = ledger.run_key(out)
     done, rejected = ledger.read_rows(log, key)
-    switches = _check_switches(done.values(), sets, out)
+    from pr2_drake.scenario import load_scenario
+
+    switched = load_scenario(None, overrides=sets)
+    switches = _check_switches(done.values(), switched.switches(), out)
     hide = tuple(str(p.resolve()) for p in (Path(root), out))
     todo = [Job(s, t, seed, seconds, limits, hide, tuple(sets)) for s in subs for t in tasks for seed in seeds
             if s.agent_for(t) is not None]
@@ -249,16 +254,15 @@ def run_competition(root: str | Path, tasks: Iterable[int], seeds: Iterable[int]
                                    "seeds": list(seeds), "seconds": seconds,
                                    "limits": vars(limits), "isolation": note,
                                    "trust_submissions": limits.trust,
-                                   "scenario": switches})
+                                   "scenario": switches,
+                                   "randomize": asdict(switched.randomize)
+                                   if switched.randomize.enabled else None})
     return rows
 
 
-def _check_switches(rows, sets: tuple[str, ...], out: Path) -> list[str]:
-    """The scenario switches ``sets`` turn on; ValueError when the episodes already in ``out``
-    were run with others (one results folder, one scenario)."""
-    from pr2_drake.scenario import load_scenario
-
-    switches = load_scenario(None, overrides=sets).switches()
+def _check_switches(rows, switches: list[str], out: Path) -> list[str]:
+    """``switches`` (:meth:`Scenario.switches`); ValueError when the episodes already in
+    ``out`` were run with others (one results folder, one scenario)."""
     for r in rows:
         if r.get("scenario", []) != switches:
             had = "+".join(r.get("scenario", [])) or "none"

@@ -22,6 +22,15 @@ from pr2_drake.robot.params import load_robot_params
 SIDES = ("l", "r")
 
 
+def index_or_slice(idx) -> np.ndarray | slice:
+    """``idx`` as a slice when it is a run of consecutive ascending indices (a view, no gather;
+    the same values), else as an index array."""
+    idx = np.asarray(idx, dtype=int).reshape(-1)
+    if len(idx) and np.array_equal(idx, np.arange(idx[0], idx[0] + len(idx))):
+        return slice(int(idx[0]), int(idx[0]) + len(idx))
+    return idx
+
+
 class WholeBodyModel:
     """Dynamics terms of KUAVO for the controller (see module docstring)."""
 
@@ -66,6 +75,16 @@ class WholeBodyModel:
             self.effort[k] = act.effort_limit()
         self.q_lower = self.plant.GetPositionLowerLimits()[self.maps.q_joints]
         self.q_upper = self.plant.GetPositionUpperLimits()[self.maps.q_joints]
+        # Index helpers of the per-tick terms (slices where the indices are consecutive).
+        self._q_quat = index_or_slice(self.maps.q_base[:4])
+        self._q_pos = index_or_slice(self.maps.q_base[4:])
+        self._v_rot = index_or_slice(self.maps.v_base[:3])
+        self._v_trans = index_or_slice(self.maps.v_base[3:])
+        # Rows of m J_com in M, gathered (a C-ordered copy: M is column-major, and the products
+        # below keep the memory layout they had).
+        self._com_rows = np.asarray(self.maps.v_base[3:])
+        self._inv_mass = 1.0 / self.mass
+        self._zero3 = np.zeros(3)
         self.q = np.zeros(self.nq)
         self.v = np.zeros(self.nv)
         self.update(self.plant.GetPositions(self.context).copy(), self.v)
@@ -78,11 +97,11 @@ class WholeBodyModel:
         v = np.empty(self.nv)
         m = self.maps
         quat = np.asarray(body_state[QUAT_WB], dtype=float)
-        q[m.q_base[:4]] = quat / np.linalg.norm(quat)
-        q[m.q_base[4:]] = body_state[P_WB]
+        q[self._q_quat] = quat / math.sqrt(quat.dot(quat))  # (np.linalg.norm's own sum)
+        q[self._q_pos] = body_state[P_WB]
         q[m.q_joints] = joint_state[Q_ALL]
-        v[m.v_base[:3]] = body_state[W_WB]
-        v[m.v_base[3:]] = body_state[V_WB]
+        v[self._v_rot] = body_state[W_WB]
+        v[self._v_trans] = body_state[V_WB]
         v[m.v_joints] = joint_state[V_ALL]
         return q, v
 
@@ -90,15 +109,11 @@ class WholeBodyModel:
         """Set the state; the terms below are computed at most once per update (cached)."""
         self.q, self.v = q, v
         self.plant.SetPositionsAndVelocities(self.context, np.concatenate([q, v]))
-        self._M = None
-        self._Cv = None
-        self._h = None
+        self._M = self._Cv = self._h = self._com = self._R_WB = None
         self._X_WS = [None, None]
-        self._com = None
         self._sole = [None, None]
         self._hand = [None, None]
         self._hand_rot = [None, None]
-        self._R_WB = None
 
     # ---- terms (cached per update: treat the returned arrays as read-only) -------------------
     def mass_matrix(self) -> np.ndarray:
@@ -119,8 +134,8 @@ class WholeBodyModel:
         (see :meth:`com`; exact, and cheaper than CalcGravityGeneralizedForces).
         """
         if self._h is None:
-            M_t = self.mass_matrix()[self.maps.v_base[3:]]
-            self._h = self._bias_term() - M_t.T @ self._g_W
+            M_t = self.mass_matrix()[self._com_rows]
+            self._h = self._bias_term() - np.dot(M_t.T, self._g_W)
         return self._h
 
     def com(self):
@@ -133,10 +148,10 @@ class WholeBodyModel:
         """
         if self._com is None:
             p = self.plant.CalcCenterOfMassPositionInWorld(self.context)
-            rows = self.maps.v_base[3:]
-            J = self.mass_matrix()[rows] * (1.0 / self.mass)
-            jdv = self._bias_term()[rows] * (1.0 / self.mass)
-            self._com = (p, J @ self.v, J, jdv)
+            rows = self._com_rows
+            J = self.mass_matrix()[rows] * self._inv_mass
+            jdv = self._bias_term()[rows] * self._inv_mass
+            self._com = (p, np.dot(J, self.v), J, jdv)
         return self._com
 
     def sole_pose(self, side: int) -> RigidTransform:
@@ -151,10 +166,10 @@ class WholeBodyModel:
         if self._sole[side] is None:
             ctx, W, S = self.context, self.world, self.soles[side]
             J = self.plant.CalcJacobianSpatialVelocity(
-                ctx, JacobianWrtVariable.kV, S, np.zeros(3), W, W)
+                ctx, JacobianWrtVariable.kV, S, self._zero3, W, W)
             jdv = self.plant.CalcBiasSpatialAcceleration(
-                ctx, JacobianWrtVariable.kV, S, np.zeros(3), W, W).get_coeffs()
-            self._sole[side] = (self.sole_pose(side), J @ self.v, J, jdv)
+                ctx, JacobianWrtVariable.kV, S, self._zero3, W, W).get_coeffs()
+            self._sole[side] = (self.sole_pose(side), np.dot(J, self.v), J, jdv)
         return self._sole[side]
 
     def shoulder_position(self, side: int) -> np.ndarray:
@@ -166,11 +181,11 @@ class WholeBodyModel:
         if self._hand[side] is None:
             ctx, W, H = self.context, self.world, self.hands[side]
             J = self.plant.CalcJacobianTranslationalVelocity(
-                ctx, JacobianWrtVariable.kV, H, np.zeros(3), W, W)
+                ctx, JacobianWrtVariable.kV, H, self._zero3, W, W)
             jdv = self.plant.CalcBiasTranslationalAcceleration(
-                ctx, JacobianWrtVariable.kV, H, np.zeros(3), W, W).reshape(-1)
+                ctx, JacobianWrtVariable.kV, H, self._zero3, W, W).reshape(-1)
             p = H.CalcPoseInWorld(ctx).translation()
-            self._hand[side] = (p, J @ self.v, J, jdv)
+            self._hand[side] = (p, np.dot(J, self.v), J, jdv)
         return self._hand[side]
 
     def hand_rotation(self, side: int):
@@ -178,10 +193,11 @@ class WholeBodyModel:
         if self._hand_rot[side] is None:
             ctx, W, H = self.context, self.world, self.hands[side]
             J = self.plant.CalcJacobianSpatialVelocity(
-                ctx, JacobianWrtVariable.kV, H, np.zeros(3), W, W)[:3]
+                ctx, JacobianWrtVariable.kV, H, self._zero3, W, W)[:3]
             jdv = self.plant.CalcBiasSpatialAcceleration(
-                ctx, JacobianWrtVariable.kV, H, np.zeros(3), W, W).rotational()
+                ctx, JacobianWrtVariable.kV, H, self._zero3, W, W).rotational()
             R = H.CalcPoseInWorld(ctx).rotation().matrix()
+            # (J is a strided view: keep @, whose sum for it differs from np.dot's)
             self._hand_rot[side] = (R, J @ self.v, J, np.asarray(jdv).reshape(-1))
         return self._hand_rot[side]
 
@@ -197,7 +213,7 @@ class WholeBodyModel:
     def contact_heights(self, side: int) -> np.ndarray:
         """z in W of the contact points of one sole [m]."""
         X = self.sole_pose(side)
-        return (X.rotation().matrix() @ self.p_SC)[2] + X.translation()[2]
+        return np.dot(X.rotation().matrix(), self.p_SC)[2] + X.translation()[2]
 
     def base_pose(self) -> RigidTransform:
         return self.base.EvalPoseInWorld(self.context)

@@ -132,28 +132,27 @@ class WalkingController(LeafSystem):
 
     # ---- diagram path -------------------------------------------------------------------------
     def _update(self, context, discrete_state) -> None:
-        if self._cmd_port.HasValue(context):
-            cmd = self._cmd_port.Eval(context)
-        else:
-            cmd = np.zeros(3)
-        cmd = check_command(cmd, COMMAND_PORT)
+        # (The core checks the command: a ValueError naming this port.)
+        port = self._cmd_port
+        cmd = port.Eval(context) if port.HasValue(context) else np.zeros(3)
         joint_state = self._js_port.Eval(context)
         q, v = self.core.model.state_from_ports(joint_state, self._bs_port.Eval(context))
+        t = context.get_time()
         if self._arms:
             targets = self._hand_port.Eval(context) if self._hand_port.HasValue(context) else None
             pick = self._pick_port.Eval(context) if self._pick_port.HasValue(context) else None
             attached = (bool(pick and pick.attached and pick.hand == "left_hand"),
                         bool(pick and pick.attached and pick.hand == "right_hand"))
             # The applied arm efforts (one step old) give the held hand's force estimate.
-            applied = joint_state[EFFORT_ARMS] if context.get_time() > 0.0 else None
-            tau = self.core.update(context.get_time(), q, v, cmd, applied, targets, attached)
-            tau = np.concatenate([tau, self.core.tau_arms])
+            applied = joint_state[EFFORT_ARMS] if t > 0.0 else None
+            tau = self.core.update(t, q, v, cmd, applied, targets, attached)
+            tau = np.concatenate([tau, self.core.tau_arms, self.core.info.vector()])
         else:
             # The applied arm efforts (one step old) tell the QP what the arm controller does.
-            tau_arms = joint_state[EFFORT_ARMS] if context.get_time() > 0.0 else None
-            tau = self.core.update(context.get_time(), q, v, cmd, tau_arms)
-        discrete_state.get_mutable_vector(self._state).SetFromVector(
-            np.concatenate([tau, self.core.info.vector()]))
+            tau_arms = joint_state[EFFORT_ARMS] if t > 0.0 else None
+            tau = np.concatenate([self.core.update(t, q, v, cmd, tau_arms),
+                                  self.core.info.vector()])
+        discrete_state.get_mutable_vector(self._state).SetFromVector(tau)
 
     def _calc_legs(self, context, output) -> None:
         tau = context.get_discrete_state(self._state).get_value()[:N_LEGS]

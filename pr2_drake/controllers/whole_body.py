@@ -22,6 +22,7 @@ Robot facts (mass, gravity, peak torques, joint ranges) come from the model's pl
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -58,6 +59,10 @@ STATUS_FIELDS = ("qp_ok", "qp_failures", "qp_iterations", "phase", "stance_side"
 
 def check_command(command, port: str = COMMAND_PORT) -> np.ndarray:
     """A velocity command (vx, vy, yaw_rate) as a float array, or ValueError naming the port."""
+    if type(command) is np.ndarray and command.shape == (3,) and command.dtype == np.float64:
+        x, y, z = command.tolist()  # the common case (a port's value): no conversions
+        if math.isfinite(x) and math.isfinite(y) and math.isfinite(z):
+            return command
     try:
         cmd = np.asarray(command, dtype=float).reshape(-1)
     except (TypeError, ValueError) as err:
@@ -182,6 +187,7 @@ class WholeBodyController:
         upper[knee] = np.minimum(upper[knee], p.qp.knee_max)
         sel = slice(0, None) if self.arms_driven else slice(N_ARMS, None)
         self.q_box_min, self.q_box_max = lower[sel], upper[sel]
+        self._q_box = np.array([self.q_box_min, self.q_box_max])  # (2, n): both bounds at once
         self.q_box_idx = m.maps.q_joints[sel]
         self.box_v = m.maps.v_joints[sel]
         self.qp = WholeBodyQp(m.nv, m.maps.v_base, m.v_legs, self.effort, 2 * m.n_points, p.qp,
@@ -326,21 +332,24 @@ class WholeBodyController:
         for objective in objectives:
             objective.add_to(cost, m, plan)
         # Arm torques: measured, or the posture block's spring-damper (position mode).
-        if not self.arms_driven and (tau_arms is None or not np.all(np.isfinite(tau_arms))):
+        if not self.arms_driven and (tau_arms is None or not np.isfinite(tau_arms).all()):
             q_arms = q[m.maps.q_joints[:len(m.v_arms)]]
             tau_arms = np.clip(p.arm_stiffness * (self.q_arms_hold - q_arms)
                                - p.arm_damping * v[m.v_arms], -self.arm_effort, self.arm_effort)
         # Joint limits: accelerations that stop each joint within its range in horizon h.
+        # (Both bounds in one (2, n) array: the same operations per element, half the calls.)
         hz = p.qp.joint_limit_horizon if joint_limit_horizon is None else joint_limit_horizon
-        q_l = q[self.q_box_idx]
-        v_l = v[self.box_v]
-        a_lo = 2.0 * (self.q_box_min - q_l - v_l * hz) / (hz * hz)
-        a_hi = 2.0 * (self.q_box_max - q_l - v_l * hz) / (hz * hz)
+        box = self._q_box - q[self.q_box_idx]
+        box -= v[self.box_v] * hz
+        box *= 2.0
+        box /= hz * hz
+        a_lo, a_hi = box[0], box[1]
         bad = a_lo > a_hi
         if bad.any():
             mid = 0.5 * (a_lo + a_hi)
-            a_lo = np.where(bad, mid, a_lo)
-            a_hi = np.where(bad, mid, a_hi)
+            box[:] = np.where(bad, mid, box)
+        np.maximum(box, -2000.0, out=box)
+        np.minimum(box, 2000.0, out=box)
         n = m.n_points
         c0, c1 = plan.contacts
         fz_max, fz_min = self._fz_max, self._fz_min
@@ -361,14 +370,13 @@ class WholeBodyController:
                     self._hand_lo[r] = 0.0
                     self._hand_hi[r] = 0.0
             hand_args = dict(J_hands=self._hand_J, hand_bounds=(self._hand_lo, self._hand_hi),
-                             hand_prior=np.r_[plan.hands[0].force_prior,
-                                              plan.hands[1].force_prior])
+                             hand_prior=np.concatenate((plan.hands[0].force_prior,
+                                                        plan.hands[1].force_prior)))
         if timed:
             t2 = time.perf_counter()
         res = self.qp.solve(m.mass_matrix(), m.bias(), self.contacts.J_all, cost.H, cost.g,
                             fz_max, tau_arms, fz_min, self.contacts.J_kin, self.contacts.a_kin,
-                            (np.minimum(np.maximum(a_lo, -2000.0), 2000.0),
-                             np.minimum(np.maximum(a_hi, -2000.0), 2000.0)), **hand_args)
+                            (a_lo, a_hi), **hand_args)
         if self.arms_driven:
             self.tau_arms = res.tau_arms
         if self.debug:

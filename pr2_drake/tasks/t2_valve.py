@@ -38,7 +38,7 @@ from pydrake.multibody.tree import (
     SpatialInertia,
     UnitInertia,
 )
-from pydrake.systems.framework import DiagramBuilder, LeafSystem
+from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
 
 from pr2_drake.grasp import Graspable
 from pr2_drake.lifetime import weak_calc
@@ -64,14 +64,22 @@ class ValveFriction(LeafSystem):
             raise ValueError(f"valve friction needs torque >= 0 and speed > 0, got {torque}, "
                              f"{speed}")
         self._nq, self._nv = plant.num_positions(), plant.num_velocities()
-        self._iv, self._tau, self._speed = v_index, float(torque), float(speed)
+        self._iv, self._speed = v_index, float(speed)
+        self.nominal_torque = float(torque)
+        self._tau = self.DeclareNumericParameter(BasicVector([self.nominal_torque]))
         self._x = self.DeclareVectorInputPort("plant_state", self._nq + self._nv)
         self.DeclareVectorOutputPort("generalized_force", self._nv, weak_calc(self._calc))
+
+    def set_torque(self, context, torque: float) -> None:
+        """The Coulomb torque tau_c [Nm] in ``context`` (this system's; a parameter, so a
+        domain randomisation sets it per episode)."""
+        context.get_mutable_numeric_parameter(self._tau).SetAtIndex(0, float(torque))
 
     def _calc(self, context, output) -> None:
         w = self._x.Eval(context)[self._nq + self._iv]
         f = np.zeros(self._nv)
-        f[self._iv] = -self._tau * np.tanh(w / self._speed)
+        tau = context.get_numeric_parameter(self._tau).GetAtIndex(0)
+        f[self._iv] = -tau * np.tanh(w / self._speed)
         output.SetFromVector(f)
 
 

@@ -64,10 +64,6 @@ class MpcSolution:
     solve_time: float = 0.0  # [s] wall time of the QP solve
 
 
-def skew(r: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
-
-
 def leg_force_limits(J_points: np.ndarray, leg_cols: np.ndarray, effort: np.ndarray,
                      margin: float, cap: float) -> float:
     """Largest normal (z) force [N] one sole point can take with the leg's joint torques within
@@ -103,6 +99,12 @@ class CentroidalMpc:
         self._S = np.tile(np.eye(3), (1, P))
         self._lower = np.tril(np.ones((N, N)), -1)  # [k, j] = 1 for j < k (knot k ends later)
         self._Mblk = np.zeros((3 * N, self.n))
+        # Where the entries of skew(r) of every (knot j, point i) block of _Mblk go: rows
+        # 3 j + a, columns 3 (P j + i) + b, for the six off-diagonal (a, b).
+        blk = np.arange(N * P)
+        rows0, cols0 = 3 * (blk // P), 3 * blk
+        self._skew_at = {(a, b): (rows0 + a, cols0 + b)
+                         for a, b in ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))}
         # Pyramid rows: for each force (fx, fy, fz): +-fx - mu fz <= 0, +-fy - mu fz <= 0.
         mu = params.mu
         n_f = P * N
@@ -174,9 +176,13 @@ class CentroidalMpc:
         # Moment blocks with the arms from the nominal CoM path (references at knot starts).
         Mb = self._Mblk
         c_nom = np.vstack([c0[None, :], c_ref[:-1]])  # at the knot starts
-        for j in range(N):
-            for i in range(P):
-                Mb[3 * j:3 * j + 3, 3 * (P * j + i):3 * (P * j + i) + 3] = skew(points[i] - c_nom[j])
+        # skew(points[i] - c_nom[j]) into every block at once (the same values as block by
+        # block: a subtraction and negations; the diagonal stays zero).
+        rx, ry, rz = (np.asarray(points)[None, :, :] - c_nom[:, None, :]).reshape(-1, 3).T
+        at = self._skew_at
+        Mb[at[0, 1]], Mb[at[0, 2]] = -rz, ry
+        Mb[at[1, 0]], Mb[at[1, 2]] = rz, -rx
+        Mb[at[2, 0]], Mb[at[2, 1]] = -ry, rx
         BL = self._tri @ Mb
         H = H0 + p.w_L * (BL.T @ BL)
         H[np.diag_indices_from(H)] += p.reg

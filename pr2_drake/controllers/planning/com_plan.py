@@ -9,17 +9,20 @@ times in s.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from pydrake.planning import ZmpPlanner
 from pydrake.trajectories import PiecewisePolynomial
 
-from pr2_drake.controllers.frames import rot2
 from pr2_drake.controllers.walking_params import GaitParams
 
 
 def zmp_point(step: np.ndarray, gait: GaitParams) -> np.ndarray:
     """Reference ZMP of a sole pose (x, y, z, yaw): its centre plus the configured x offset."""
-    return step[:2] + rot2(step[3]) @ np.array([gait.zmp_offset_x, 0.0])
+    # rot2(yaw) @ (x_offset, 0), written out: a product with a zero adds nothing.
+    yaw, dx = step[3], gait.zmp_offset_x
+    return step[:2] + np.array([math.cos(yaw) * dx, math.sin(yaw) * dx])
 
 
 class ComPlanner:

@@ -33,11 +33,11 @@ heading frame H (yaw only). Gravity comes from the model's plant.
 from __future__ import annotations
 
 import enum
+import math
 
 import numpy as np
-from pydrake.math import RotationMatrix
 
-from pr2_drake.controllers.frames import rot2, rot_z, wrap, yaw_of
+from pr2_drake.controllers.frames import rot2, rot_y, rot_z, wrap, yaw_of
 from pr2_drake.controllers.planning.com_plan import ComPlanner, zmp_point
 from pr2_drake.controllers.planning.footsteps import (
     SIDE_SIGN,
@@ -105,14 +105,19 @@ class GaitPlanner:
         self._t_command_change = np.inf
         self._last_command = [0.0, 0.0, 0.0]
         self.com_offset = None
+        self._pelvis_yaw: float | None = None
+        self._pelvis_R = None
 
     def clip_command(self, command: np.ndarray) -> np.ndarray:
         """Clip a checked command (vx, vy, yaw_rate) to the configured limits."""
-        cmd = command
+        return np.array(self._clip(*command.tolist()))
+
+    def _clip(self, vx: float, vy: float, wz: float) -> list[float]:
+        """:meth:`clip_command` on three floats."""
         lim = self.params.limits
-        return np.array([min(max(cmd[0], lim.vx_min), lim.vx_max),
-                         min(max(cmd[1], -lim.vy_max), lim.vy_max),
-                         min(max(cmd[2], -lim.yaw_rate_max), lim.yaw_rate_max)])
+        return [min(max(vx, lim.vx_min), lim.vx_max),
+                min(max(vy, -lim.vy_max), lim.vy_max),
+                min(max(wz, -lim.yaw_rate_max), lim.yaw_rate_max)]
 
     # ---- the tick ----------------------------------------------------------------------------
     def update(self, t: float, command: np.ndarray, com, comd,
@@ -123,7 +128,6 @@ class GaitPlanner:
         leaning against a force at a hand). Returns the plan (the same object every tick)."""
         self.com_offset = com_offset
         p = self.params
-        target_cmd = self.clip_command(command)
         m = self.model
         if self.t_last is not None and t < self.t_last - 1e-9:
             self.reset()  # the simulation restarted
@@ -133,7 +137,7 @@ class GaitPlanner:
         # walking (all zero) is immediate.
         lim = p.limits
         # (Scalar math: three numbers per tick are cheaper than numpy calls.)
-        tc = target_cmd.tolist()
+        tc = self._clip(*command.tolist())
         old = self.command.tolist()
         if tc[0] != 0.0 or tc[1] != 0.0 or tc[2] != 0.0:
             rates = (lim.accel_max * dt, lim.accel_max * dt, lim.yaw_accel_max * dt)
@@ -153,7 +157,7 @@ class GaitPlanner:
             self.heading = pelvis_yaw
         # Integrate the yaw-rate command, but stop while the heading leads the pelvis by more
         # than heading_lead_max (no wind-up when the body cannot follow).
-        new_heading = self.heading + self.command[2] * dt
+        new_heading = self.heading + cmd[2] * dt
         lead_new = abs(wrap(new_heading - pelvis_yaw))
         if lead_new <= p.limits.heading_lead_max or lead_new < abs(wrap(self.heading - pelvis_yaw)):
             self.heading = new_heading
@@ -178,8 +182,9 @@ class GaitPlanner:
         elif self.phase in (Phase.START, Phase.DOUBLE):
             # Lift off when the DCM is where the next step needs it (or after a time-out).
             elapsed = t - self.t_phase
-            omega = np.sqrt(self.gravity / g.com_height)
-            err = float(np.linalg.norm(com[:2] + comd[:2] / omega - self.start_dcm[2]))
+            omega = math.sqrt(self.gravity / g.com_height)
+            d = com[:2] + comd[:2] / omega - self.start_dcm[2]
+            err = math.sqrt(d.dot(d))  # (np.linalg.norm's own sum)
             if elapsed >= min(self.phase_duration, g.min_double_support) - 1e-9 and (
                     err > self._shift_err + 1e-4 and err > g.runaway_dcm_error):
                 self._lift_off(t, com, comd)  # the DCM runs away: step now
@@ -191,7 +196,7 @@ class GaitPlanner:
             self._shift_err = err
         if self.phase == Phase.SINGLE:
             swing_side = 1 - self.stance
-            self.swing.evaluate(t)
+            self.swing.advance(t)
             progress = self.swing.progress
             # Swing sole height above the stance sole, or above its target on known terrain.
             z_ref = (self.swing.target[2] if self.terrain.known_heights
@@ -215,10 +220,15 @@ class GaitPlanner:
         # CoM.
         ground = self._ground_z()
         if self.phase == Phase.STAND:
-            target = 0.5 * (zmp_point(self.footholds[0], g) + zmp_point(self.footholds[1], g))
+            # (Scalar math per component, in the order the 2-vector expressions had.)
+            (ax, ay), (bx, by) = (zmp_point(f, g).tolist() for f in self.footholds)
+            tx, ty = 0.5 * (ax + bx), 0.5 * (ay + by)
             if self.com_offset is not None:
-                target = target + self._clip_lean(self.com_offset)
-            a_xy = p.com_xy.kp * (target - com[:2]) - p.com_xy.kd * comd[:2]
+                lx, ly = self._clip_lean(self.com_offset).tolist()
+                tx, ty = tx + lx, ty + ly
+            kp, kd = p.com_xy.kp, p.com_xy.kd
+            a_xy = np.array([kp * (tx - float(com[0])) - kd * float(comd[0]),
+                             kp * (ty - float(com[1])) - kd * float(comd[1])])
         elif self.phase in (Phase.START, Phase.DOUBLE):
             a_xy = self._shift_comdd(t, com, comd)
         elif self.phase == Phase.SINGLE:
@@ -246,7 +256,10 @@ class GaitPlanner:
         plan.com_frame_yaw = (self.footholds[self.stance][3] if self.phase == Phase.SINGLE
                               else None)
         # Pelvis orientation (level, yaw along the heading).
-        plan.pelvis_R = rot_z(self.heading)
+        if self.heading != self._pelvis_yaw:  # (the same matrix while the heading holds)
+            self._pelvis_yaw = self.heading
+            self._pelvis_R = rot_z(self.heading)
+        plan.pelvis_R = self._pelvis_R
         # Contacts.
         fmax = p.qp.fz_max_factor * self.model.mass * self.gravity
         for side in (0, 1):
@@ -260,7 +273,7 @@ class GaitPlanner:
             bound = fmax
             if self.phase == Phase.DOUBLE and side == self.stance:
                 ramp = (t - self.t_touchdown) / max(p.qp.load_ramp, 1e-6)
-                bound = fmax * float(np.clip(ramp, 0.1, 1.0))
+                bound = fmax * min(max(ramp, 0.1), 1.0)
             c.fz_max = bound
             if self.phase == Phase.SINGLE:
                 c.fz_min = p.qp.fz_min_single
@@ -281,8 +294,8 @@ class GaitPlanner:
         pitch_d, pitchd_d = self.swing.pitch()
         R_d = rot_z(yaw_d)
         if pitch_d != 0.0:  # landing pitched on known terrain
-            R_d = R_d @ RotationMatrix.MakeYRotation(pitch_d).matrix()
-        w_d = np.array([-np.sin(yaw_d) * pitchd_d, np.cos(yaw_d) * pitchd_d, yawd_d])
+            R_d = np.dot(R_d, rot_y(pitch_d))
+        w_d = np.array([-math.sin(yaw_d) * pitchd_d, math.cos(yaw_d) * pitchd_d, yawd_d])
         # Blocked descent (early contact): above the curve and no longer moving down.
         self.swing_z_error = (float(pos[2] - p_d[2])
                               if v_d[2] <= 0.0 and V[5] > 0.5 * min(v_d[2], -0.1) else 0.0)
@@ -360,7 +373,7 @@ class GaitPlanner:
         planned swing target plus the periodic offset b1 at the next ZMP switch.
         """
         g = self.params.gait
-        omega = np.sqrt(self.gravity / g.com_height)
+        omega = math.sqrt(self.gravity / g.com_height)
         p_st = zmp_point(self.footholds[self.stance], g)
         p_new = zmp_point(self.swing_plan, g)
         b1 = self._planned_dcm_offset()
@@ -375,25 +388,31 @@ class GaitPlanner:
     def _shift_comdd(self, t: float, com, comd) -> np.ndarray:
         """CoM acceleration (xy) of the weight shift: DCM tracking with a bounded ZMP."""
         g = self.params.gait
-        omega = np.sqrt(self.gravity / g.com_height)
+        omega = math.sqrt(self.gravity / g.com_height)
         t0, xi0, xi1 = self.start_dcm
         T = max(self.phase_duration, 1e-3)
         tau = (t - t0) / T
         tc = min(max(tau, 0.0), 1.0)
         sd = tc**3 * (10 - 15 * tc + 6 * tc * tc)
         dsd = 30 * tc * tc * (1 - tc) ** 2 / T
-        xi_d = xi0 + (xi1 - xi0) * sd
-        xid_d = (xi1 - xi0) * dsd
-        xi = com[:2] + comd[:2] / omega
-        zmp = xi - (xid_d - g.dcm_track_gain * (xi - xi_d)) / omega
+        # (Scalar math per component, in the order the 2-vector expressions had.)
+        k = g.dcm_track_gain
+        com_xy = (float(com[0]), float(com[1]))
+        zmp = []
+        for s0, s1, c, cd in zip(xi0.tolist(), xi1.tolist(), com_xy, comd[:2].tolist()):
+            xi = c + cd / omega
+            zmp.append(xi - ((s1 - s0) * dsd - k * (xi - (s0 + (s1 - s0) * sd))) / omega)
         # Keep the ZMP inside the double-support region (heading frame box around the soles).
         R = rot2(self.heading)
-        pts = np.array([R.T @ zmp_point(f, g) for f in self.footholds])
-        z_H = R.T @ zmp
+        RT = R.T
+        a, b = (np.dot(RT, zmp_point(f, g)) for f in self.footholds)
+        z_H = np.dot(RT, np.array(zmp))
         half = 0.5 * self.model.foot_length - 0.02
-        z_H[0] = np.clip(z_H[0], pts[:, 0].min() - half, pts[:, 0].max() + half)
-        z_H[1] = np.clip(z_H[1], pts[:, 1].min(), pts[:, 1].max())
-        return omega**2 * (com[:2] - R @ z_H)
+        z_H[0] = min(max(z_H[0], min(a[0], b[0]) - half), max(a[0], b[0]) + half)
+        z_H[1] = min(max(z_H[1], min(a[1], b[1])), max(a[1], b[1]))
+        w2 = omega**2
+        zx, zy = np.dot(R, z_H).tolist()
+        return np.array([w2 * (com_xy[0] - zx), w2 * (com_xy[1] - zy)])
 
     def _single_comdd(self, t: float, com, comd) -> np.ndarray:
         """CoM acceleration (xy) in single support: LIPM about a ZMP on the stance sole.
@@ -403,16 +422,21 @@ class GaitPlanner:
         xi_ref(t) = p + (xi_liftoff - p) exp(omega (t - t_liftoff)).
         """
         g = self.params.gait
-        omega = np.sqrt(self.gravity / g.com_height)
+        omega = math.sqrt(self.gravity / g.com_height)
         foot = self.footholds[self.stance]
-        p_st = zmp_point(foot, g)
-        xi = com[:2] + comd[:2] / omega
-        xi_ref = p_st + (self.start_dcm[2] - p_st) * np.exp(omega * (t - self.t_phase))
-        axis = np.array([np.cos(foot[3]), np.sin(foot[3])])
-        dx = (1.0 + g.ankle_dcm_gain / omega) * float(axis @ (xi - xi_ref))
+        # (Scalar math per component, in the order the 2-vector expressions had.)
+        px, py = zmp_point(foot, g).tolist()
+        cx, cy = float(com[0]), float(com[1])
+        growth = np.exp(omega * (t - self.t_phase))
+        sx, sy = self.start_dcm[2].tolist()
+        xr, yr = px + (sx - px) * growth, py + (sy - py) * growth
+        ca, sa = math.cos(foot[3]), math.sin(foot[3])
+        xi_err = np.array([cx + float(comd[0]) / omega - xr, cy + float(comd[1]) / omega - yr])
+        dx = (1.0 + g.ankle_dcm_gain / omega) * float(np.dot(np.array([ca, sa]), xi_err))
         lim = g.ankle_zmp_range
-        zmp = p_st + axis * min(max(dx, -lim), lim)
-        return omega * omega * (com[:2] - zmp)
+        d = min(max(dx, -lim), lim)
+        w2 = omega * omega
+        return np.array([w2 * (cx - (px + ca * d)), w2 * (cy - (py + sa * d))])
 
     def _lift_off(self, t: float, com, comd) -> None:
         g = self.params.gait
@@ -495,7 +519,7 @@ class GaitPlanner:
         b = (L1 exp(omega T) + L2) / (exp(2 omega T) - 1) (``self.dcm_offset``).
         """
         g = self.params.gait
-        omega = np.sqrt(self.gravity / g.com_height)
+        omega = math.sqrt(self.gravity / g.com_height)
         stance = self.footholds[self.stance]
         p_st = zmp_point(stance, g)
         xi = com[:2] + comd[:2] / omega
@@ -518,7 +542,7 @@ class GaitPlanner:
         # Move the swing target at a bounded speed so the swing curve stays smooth.
         step = target_xy - self.swing.target[:2]
         max_step = g.retarget_speed * max(t - self._t_retarget, 0.0)
-        n = np.linalg.norm(step)
+        n = math.sqrt(step.dot(step))  # (np.linalg.norm's own sum)
         if n > max_step:
             step *= max_step / n
         self.swing.target[:2] += step
@@ -561,7 +585,7 @@ class GaitPlanner:
     def _planned_dcm_offset(self) -> np.ndarray:
         """Periodic DCM offset b (xy, W) at the switch onto the planned swing target."""
         g = self.params.gait
-        omega = np.sqrt(self.gravity / g.com_height)
+        omega = math.sqrt(self.gravity / g.com_height)
         T = g.step_period
         swing_side = 1 - self.stance
         f1 = self.swing_plan

@@ -106,8 +106,11 @@ def choose_step(t: float, xi: np.ndarray, p_st: np.ndarray, stance: np.ndarray, 
         rx, ry = ux - sx, uy - sy
         dx = cs * rx + ss * ry
         dlat = sgn * (-ss * rx + cs * ry)
-        x = min(max(dx, x_min), x_max)
-        lat = min(max(dlat, w_min), w_max)
+        # min(max(dx, x_min), x_max), without the builtins' call overhead (same comparisons)
+        x = x_min if x_min > dx else dx
+        x = x_max if x_max < x else x
+        lat = w_min if w_min > dlat else dlat
+        lat = w_max if w_max < lat else lat
         r_x, r_out = dx - x, dlat - lat
         cost = (w_x * r_x * r_x + (w_out if r_out > 0.0 else w_in) * r_out * r_out
                 + w_t * (T - t_planned) ** 2 + (penalty if abs(T - t_current) > 1e-6 else 0.0))

@@ -85,14 +85,15 @@ class SwingTrajectory:
 
     def retime(self, t: float, landing_time: float) -> None:
         """Bring the landing forward to ``landing_time`` (absolute) from time t."""
-        self._advance(t)
+        self.advance(t)
         remaining = landing_time - t
         if remaining <= 1e-3 or self._tau >= 1.0:
             return
         self._rate = (1.0 - self._tau) / remaining
         self.t_land = landing_time - self.t0
 
-    def _advance(self, t: float) -> None:
+    def advance(self, t: float) -> None:
+        """Move the swing phase on to time t (``progress``); :meth:`evaluate` does it too."""
         dt = t - self._t
         if dt > 0:
             self._tau = min(self._tau + self._rate * dt, 1.0)
@@ -100,7 +101,7 @@ class SwingTrajectory:
 
     def evaluate(self, t: float):
         """p, v, a (3 each, W) and yaw, yaw rate of the desired sole at time t."""
-        self._advance(t)
+        self.advance(t)
         tau, r = self._tau, self._rate
         if self.clear_z is not None:
             return self._evaluate_clearance(t, tau, r)
@@ -109,28 +110,30 @@ class SwingTrajectory:
         s, ds, dds = _quintic((tau - f) * k)  # horizontal (and yaw) blend
         ds, dds = ds * k, dds * k * k
         sz, dsz, ddsz = _quintic(tau)  # height blend between the two ends
-        d = self.target[:3] - self.start[:3]
-        p = self.start[:3] + s * d
-        v = ds * r * d
-        a = dds * r * r * d
-        p[2] = self.start[2] + sz * d[2]
-        v[2] = dsz * r * d[2]
-        a[2] = ddsz * r * r * d[2]
-        dyaw = wrap(self.target[3] - self.start[3])
-        yaw = self.start[3] + s * dyaw
+        # (Scalar math per component, in the order the vector expressions had.)
+        x0, y0, z0, yaw0 = self.start.tolist()
+        x1, y1, z1, yaw1 = self.target.tolist()
+        dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
+        vr, ar = ds * r, dds * r * r
+        pz = z0 + sz * dz
+        vz = dsz * r * dz
+        az = ddsz * r * r * dz
+        dyaw = wrap(yaw1 - yaw0)
+        yaw = yaw0 + s * dyaw
         yawd = ds * r * dyaw
         # Height bump on top of the straight blend.
-        top = max(self.start[2], self.target[2]) - self.start[2] - sz * d[2]
+        top = max(z0, z1) - z0 - sz * dz
         bump = self.height + max(top, 0.0)
-        p[2] += bump * 64 * tau**3 * (1 - tau) ** 3
-        v[2] += bump * 64 * 3 * tau**2 * (1 - tau) ** 2 * (1 - 2 * tau) * r
-        a[2] += bump * 64 * 6 * tau * (1 - tau) * (1 - 5 * tau + 5 * tau * tau) * r * r
+        pz += bump * 64 * tau**3 * (1 - tau) ** 3
+        vz += bump * 64 * 3 * tau**2 * (1 - tau) ** 2 * (1 - 2 * tau) * r
+        az += bump * 64 * 6 * tau * (1 - tau) * (1 - 5 * tau + 5 * tau * tau) * r * r
         late = (t - self.t0) - self.t_land
         if tau >= 1.0 and late > 0:
-            p[2] = self.target[2] - min(self.descent_speed * late, self.max_descent)
-            v[2] = -self.descent_speed if self.descent_speed * late < self.max_descent else 0.0
-            a[2] = 0.0
-        return p, v, a, yaw, yawd
+            pz = z1 - min(self.descent_speed * late, self.max_descent)
+            vz = -self.descent_speed if self.descent_speed * late < self.max_descent else 0.0
+            az = 0.0
+        return (np.array([x0 + s * dx, y0 + s * dy, pz]), np.array([vr * dx, vr * dy, vz]),
+                np.array([ar * dx, ar * dy, az]), yaw, yawd)
 
     def _evaluate_clearance(self, t: float, tau: float, r: float):
         """Lift, move, lower: the sole rises from its start height to ``clear_z`` over the

@@ -31,6 +31,7 @@ class HandForceEstimator:
         n = len(model.v_arms) // 2
         self.arm_v = [model.v_arms[:n], model.v_arms[n:]]
         self.arm_slices = [slice(0, n), slice(n, 2 * n)]
+        self._damping = 1e-6 * np.eye(3)  # of the least-squares solve
         self.reset()
 
     def reset(self) -> None:
@@ -46,7 +47,7 @@ class HandForceEstimator:
         v = m.v
         dt = t - self._t_prev
         ok = (self._v_prev is not None and dt > 1e-6 and tau_arms is not None
-              and np.all(np.isfinite(tau_arms)))
+              and np.isfinite(tau_arms).all())
         if ok and (attached[0] or attached[1]):
             vdot = (v - self._v_prev) / dt
             M, h = m.mass_matrix(), m.bias()
@@ -57,7 +58,7 @@ class HandForceEstimator:
                 idx = self.arm_v[side]
                 r = M[idx] @ vdot + h[idx] - tau_arms[self.arm_slices[side]]
                 J = m.hand_point(side)[2][:, idx]  # 3 x 4
-                f = np.linalg.solve(J @ J.T + 1e-6 * np.eye(3), J @ r)
+                f = np.linalg.solve(J @ J.T + self._damping, J @ r)
                 self.f[side] += alpha * (f - self.f[side])
         for side in (0, 1):
             if not attached[side]:

@@ -21,20 +21,20 @@ from pydrake.math import RotationMatrix
 from pr2_drake.controllers.frames import rot_z
 from pr2_drake.controllers.plan import WholeBodyPlan
 from pr2_drake.controllers.walking_params import QpParams, ObjectiveGains
-from pr2_drake.controllers.model import WholeBodyModel
+from pr2_drake.controllers.model import WholeBodyModel, index_or_slice
 
 
 def rotation_error(R_d: np.ndarray, R: np.ndarray) -> np.ndarray:
     """Axis-angle vector (in W) of R_d R^T: the rotation that takes R to R_d [rad]."""
-    E = R_d @ R.T
-    v = 0.5 * np.array([E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]])
-    c = 0.5 * (E[0, 0] + E[1, 1] + E[2, 2] - 1.0)
-    s = float(np.sqrt(v @ v))
+    (e00, e01, e02), (e10, e11, e12), (e20, e21, e22) = np.dot(R_d, R.T).tolist()
+    v = np.array([0.5 * (e21 - e12), 0.5 * (e02 - e20), 0.5 * (e10 - e01)])
+    c = 0.5 * (e00 + e11 + e22 - 1.0)
+    s = math.sqrt(np.dot(v, v))
     if s < 1e-9:
         if c > 0:
             return v
         # 180 degrees: axis from the symmetric part.
-        aa = RotationMatrix(E).ToAngleAxis()
+        aa = RotationMatrix(R_d @ R.T).ToAngleAxis()
         return aa.axis() * aa.angle()
     return v * (np.arctan2(s, c) / s)
 
@@ -63,14 +63,16 @@ class ObjectiveCost:
         if self.record:
             self.rows.append((J, a, w))
         Jw = J * w[:, None]
-        self.H += Jw.T @ J
-        self.g -= Jw.T @ a
+        JwT = Jw.T
+        self.H += np.dot(JwT, J)
+        self.g -= np.dot(JwT, a)
 
-    def add_selection(self, idx: np.ndarray, a: np.ndarray, w: np.ndarray) -> None:
+    def add_selection(self, idx: np.ndarray | slice, a: np.ndarray, w: np.ndarray) -> None:
         """:meth:`add` for J = rows ``idx`` of the identity (same sums, no matrix products)."""
         if self.record:
-            J = np.zeros((len(idx), self.nv))
-            J[np.arange(len(idx)), idx] = 1.0
+            cols = np.arange(self.nv)[idx]  # (idx may be a slice)
+            J = np.zeros((len(cols), self.nv))
+            J[np.arange(len(cols)), cols] = 1.0
             self.rows.append((J, a, w))
         self._diag[idx] += w
         self.g[idx] -= w * a
@@ -103,14 +105,15 @@ class ComObjective(Objective):
 
     def add_to(self, cost, model, plan) -> None:
         com, comd, J, jdv = model.com()
-        a_xy = plan.com_acc_xy
-        a_z = self.z.kp * (plan.com_z - com[2]) - self.z.kd * comd[2]
-        a = np.array([a_xy[0], a_xy[1], a_z])
+        ax, ay = plan.com_acc_xy.tolist()
+        a_z = self.z.kp * (plan.com_z - float(com[2])) - self.z.kd * float(comd[2])
+        j0, j1, j2 = jdv.tolist()
+        a = np.array([ax - j0, ay - j1, a_z - j2])  # desired minus Jdot v
         if plan.com_frame_yaw is not None:
-            Rs = rot_z(plan.com_frame_yaw)
-            cost.add(Rs.T @ J, Rs.T @ (a - jdv), self.w_single)
+            RsT = rot_z(plan.com_frame_yaw).T
+            cost.add(np.dot(RsT, J), np.dot(RsT, a), self.w_single)
         else:
-            cost.add(J, a - jdv, self.w)
+            cost.add(J, a, self.w)
 
 
 class PelvisOrientationObjective(Objective):
@@ -118,7 +121,7 @@ class PelvisOrientationObjective(Objective):
 
     def __init__(self, gains: ObjectiveGains, model: WholeBodyModel):
         self.gains = gains
-        self.idx = np.asarray(model.maps.v_base[:3])
+        self.idx = index_or_slice(model.maps.v_base[:3])
         self.w = np.full(3, gains.weight)
 
     def add_to(self, cost, model, plan) -> None:
@@ -144,6 +147,11 @@ class SoleContactObjective(Objective):
         self.J_kin = np.zeros((2 * self.n_kin_foot, m.nv))
         self.a_kin = np.full(2 * self.n_kin_foot, np.nan)
         self.w_soft = np.full(self.n_kin_foot, qp.contact_weight)
+        # Selection rows per sole: the first point's 3 rows are constant, the others are
+        # rewritten every tick (constraint_rows).
+        self._E = [np.zeros((self.n_kin_foot, 3 * m.n_points)) for _ in (0, 1)]
+        for E in self._E:
+            E[0, 0] = E[1, 1] = E[2, 2] = 1.0
 
     def add_to(self, cost, model, plan) -> None:
         m = model
@@ -156,28 +164,27 @@ class SoleContactObjective(Objective):
             c = plan.contacts[side]
             if not c.active:
                 continue
-            vc = Jc @ m.v
-            a_c = -self.qp.contact_kd * vc - jdv_c
+            a_c = -self.qp.contact_kd * np.dot(Jc, m.v) - jdv_c
             kr = slice(self.n_kin_foot * side, self.n_kin_foot * (side + 1))
             E = self.constraint_rows(m, side)
-            EJ = E @ Jc
+            EJ = np.dot(E, Jc)
             self.J_kin[kr] = EJ
             if c.hard:
-                self.a_kin[kr] = E @ a_c
+                self.a_kin[kr] = np.dot(E, a_c)
             else:
-                cost.add(EJ, E @ a_c, self.w_soft)
+                cost.add(EJ, np.dot(E, a_c), self.w_soft)
 
     def constraint_rows(self, m: WholeBodyModel, side: int) -> np.ndarray:
-        """Selection E (n_kin_foot x 3n) of independent rows of a sole's point accelerations."""
+        """Selection E (n_kin_foot x 3n) of independent rows of a sole's point accelerations
+        (this controller's array for the sole, rewritten on the next call: copy to keep)."""
         X = m.sole_pose(side)
-        P = X.rotation().matrix() @ m.p_SC  # point offsets in W (3 x n)
+        P = np.dot(X.rotation().matrix(), m.p_SC)  # point offsets in W (3 x n)
         n = m.n_points
-        E = np.zeros((self.n_kin_foot, 3 * n))
-        E[0, 0] = E[1, 1] = E[2, 2] = 1.0
-        dx, dy, dz = (P[:, 1] - P[:, 0]).tolist()  # scalar math: cheaper than tiny arrays
+        E = self._E[side]
+        (x0, x1, *_), (y0, y1, *_), (z0, z1, *_) = P.tolist()
+        dx, dy, dz = x1 - x0, y1 - y0, z1 - z0  # scalar math: cheaper than tiny arrays
         nd = math.sqrt(dx * dx + dy * dy + dz * dz)
         dx, dy, dz = dx / nd, dy / nd, dz / nd
-        d = np.array([dx, dy, dz])
         e1x, e1y, e1z = dy, -dx, 0.0  # d x z
         n1 = math.sqrt(e1x * e1x + e1y * e1y)
         if n1 < 1e-6:
@@ -188,7 +195,7 @@ class SoleContactObjective(Objective):
         E[4, 3:6] = (dy * e1z - dz * e1y, dz * e1x - dx * e1z, dx * e1y - dy * e1x)
         if self.n_kin_foot > 5:
             k = 2 if n < 4 else 3  # a point off the first line
-            nrm = np.cross(d, P[:, k] - P[:, 0])
+            nrm = np.cross(np.array([dx, dy, dz]), P[:, k] - P[:, 0])
             E[5, 3 * k:3 * k + 3] = nrm / np.linalg.norm(nrm)
         return E
 
@@ -207,11 +214,20 @@ class SwingSoleObjective(Objective):
         if s is None:
             return
         X, V, J, jdv = model.sole_spatial(s.side)
-        a_lin = s.a + self.pos.kp * (s.p - X.translation()) + self.pos.kd * (s.v - V[3:])
-        e = rotation_error(s.R, X.rotation().matrix())
-        a_ang = self.rot.kp * e + self.rot.kd * (s.w - V[:3])
-        cost.add(s.R.T @ J[:3], s.R.T @ (a_ang - jdv[:3]), self.w_rot)
-        cost.add(J[3:], a_lin - jdv[3:], self.w_pos)
+        # a + kp (p_d - p) + kd (v_d - v) - Jdot v per component (scalar math: 3-vectors).
+        kp, kd = self.pos.kp, self.pos.kd
+        w0, w1, w2, v0, v1, v2 = V.tolist()
+        x = X.translation().tolist()
+        j = jdv.tolist()
+        a_lin = np.array([a + kp * (p - xi) + kd * (vd - vi) - ji for a, p, xi, vd, vi, ji in
+                          zip(s.a.tolist(), s.p.tolist(), x, s.v.tolist(), (v0, v1, v2), j[3:])])
+        e = rotation_error(s.R, X.rotation().matrix()).tolist()
+        kp, kd = self.rot.kp, self.rot.kd
+        a_ang = np.array([kp * ei + kd * (wd - wi) - ji for ei, wd, wi, ji in
+                          zip(e, s.w.tolist(), (w0, w1, w2), j[:3])])
+        RT = s.R.T
+        cost.add(np.dot(RT, J[:3]), np.dot(RT, a_ang), self.w_rot)
+        cost.add(J[3:], a_lin, self.w_pos)
 
 
 class HandPositionObjective(Objective):

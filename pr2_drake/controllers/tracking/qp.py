@@ -30,6 +30,7 @@ torques. "osqp" uses OSQP only.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -165,7 +166,6 @@ class WholeBodyQp:
         if solver not in ("daqp", "osqp"):
             raise ValueError(f"qp.solver must be 'daqp' or 'osqp', got {solver!r}")
         self.use_daqp = solver == "daqp" and daqp is not None
-        self._sense = np.zeros(self.m, dtype=np.intc)
         # Per-tick index helpers (contiguous row blocks as slices).
         self._dyn_v = np.concatenate([self.base_v, self.leg_v, self.arm_v]).astype(int)
         self._nl = len(self.base_v) + len(self.leg_v)
@@ -176,6 +176,24 @@ class WholeBodyQp:
         self.last_tau_arms = np.zeros(len(self.arm_v))
         self._P_vdiag = self.P.reshape(-1)[:nv * self.n:self.n + 1]  # view: diag of the vdot block
         assert np.shares_memory(self._P_vdiag, self.P)
+        self._init_tick_buffers()
+
+    def _init_tick_buffers(self) -> None:
+        """Per-tick buffers: the bounds given to the solver, the offsets of the dynamics rows'
+        bounds from -h (0 base; -+ the peak torques; the applied arm torques), the DAQP sense
+        by (l == u), and the contact columns per contact pattern."""
+        self._l = np.empty(self.m)
+        self._u = np.empty(self.m)
+        self._dyn_lo = np.zeros(self.n_dyn)
+        self._dyn_hi = np.zeros(self.n_dyn)
+        nb, nl = len(self.base_v), self._nl
+        self._dyn_lo[nb:nl] = -self.effort
+        self._dyn_hi[nb:nl] = self.effort
+        if self.arm_effort is not None:
+            self._dyn_lo[nl:] = -self.arm_effort
+            self._dyn_hi[nl:] = self.arm_effort
+        self._sense_of = np.array([0, _DAQP_EQUALITY], dtype=np.intc)
+        self._contact_cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
 
     def _setup(self) -> None:
         """(Re)create the OSQP workspace with the fixed sparsity pattern."""
@@ -227,20 +245,20 @@ class WholeBodyQp:
         """
         p, nv = self.p, self.nv
         in_contact = fz_max > 0
-        hd = self._set_dynamics(M, h, Jc, in_contact, tau_arms, J_hands, hand_bounds,
-                                hand_prior)
+        hd = self._set_dynamics(M, h, Jc, self._contact_columns(in_contact), tau_arms, J_hands,
+                                hand_bounds, hand_prior)
         self._set_force_bounds(fz_max, fz_min, in_contact)
         self._set_kinematic_rows(J_kin, a_kin, box)
         P = self.P
         P[:nv, :nv] = H
         self._P_vdiag += p.vdot_reg
         self.q[:nv] = g
-        l = np.maximum(self.l, -_INF)
-        u = np.minimum(self.u, _INF)
+        l = np.maximum(self.l, -_INF, out=self._l)
+        u = np.minimum(self.u, _INF, out=self._u)
         # One reduction per array: a NaN or inf anywhere makes the sum non-finite (the bounds
         # are clamped to +-1e30 above, so only NaN can remain there).
-        if not (np.isfinite(P.sum() + self.A.sum() + self.q.sum())
-                and not np.isnan(l.sum() + u.sum())):
+        if not (math.isfinite(P.sum() + self.A.sum() + self.q.sum())
+                and not math.isnan(l.sum() + u.sum())):
             return self._fallback("non-finite problem data", 0)
         if self.use_daqp:
             result = self._solve_daqp(l, u, hd, in_contact)
@@ -249,20 +267,30 @@ class WholeBodyQp:
             # No solution from the active-set method: let OSQP try (approximate, capped).
         return self._solve_osqp(l, u, h, hd, in_contact)
 
-    def _set_dynamics(self, M, h, Jc, in_contact, tau_arms, J_hands, hand_bounds,
+    def _contact_columns(self, in_contact: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per force variable: the contact flag (0/1), and minus the force scale where in
+        contact (0 elsewhere); cached per contact pattern."""
+        key = in_contact.tobytes()
+        cols = self._contact_cache.get(key)
+        if cols is None:
+            flag = np.repeat(in_contact, 3)
+            cols = self._contact_cache[key] = (flag, -(self.scale * flag))
+        return cols
+
+    def _set_dynamics(self, M, h, Jc, columns, tau_arms, J_hands, hand_bounds,
                       hand_prior) -> np.ndarray:
         """The floating-base, leg and arm rows of M vdot + h = Jc^T f (+ J_hands^T f_H) and
         their bounds (the legs' and QP-driven arms' peak torques, or the applied arm torques);
-        the hand-force columns, bounds and prior. Returns h of those rows."""
+        the hand-force columns, bounds and prior (``columns``: :meth:`_contact_columns`).
+        Returns h of those rows."""
         nv, s, nd = self.nv, self.scale, self.n_dyn
         A = self.A
         # Forces of points not in contact leave the dynamics rows (their columns are zeroed,
         # the sparsity pattern stays), so solver tolerance cannot create phantom support.
-        JcT = Jc.T * (s * np.repeat(in_contact, 3))
-        # Dynamics rows [base; legs; arms] of [M, -Jc^T] in one gather each.
+        # Dynamics rows [base; legs; arms] of [M, -Jc^T] in one gather each; -(x s) = x (-s).
         dyn = self._dyn_v
         A[:nd, :nv] = M[dyn]
-        A[:nd, nv:nv + self.nf_feet] = -JcT[dyn]
+        np.multiply(Jc.T[dyn], columns[1], out=A[:nd, nv:nv + self.nf_feet])
         l, u = self.l, self.u
         if self.n_hands:
             hc = slice(nv + self.nf_feet, self.n)
@@ -277,18 +305,17 @@ class WholeBodyQp:
                 u[hr] = hand_bounds[1] / s
             prior = np.zeros(3 * self.n_hands) if hand_prior is None else hand_prior
             self.q[hc] = -(self.p.hand_force_reg / s) * prior
-        nb, nl = len(self.base_v), self._nl
+        # Bounds -h + offsets: (-h) - e = (-h) + (-e), and -h + 0 = -h.
+        nl = self._nl
         hd = h[dyn]
-        np.negative(hd, out=l[:nd])
-        u[:nd] = l[:nd]
-        l[nb:nl] -= self.effort
-        u[nb:nl] += self.effort
-        if self.arm_effort is not None:
-            l[nl:nd] -= self.arm_effort
-            u[nl:nd] += self.arm_effort
-        elif nd > nl and tau_arms is not None:
-            l[nl:nd] += tau_arms
-            u[nl:nd] += tau_arms
+        lo, hi = self._dyn_lo, self._dyn_hi
+        if self.arm_effort is None and nd > nl:
+            arms = 0.0 if tau_arms is None else tau_arms
+            lo[nl:] = arms
+            hi[nl:] = arms
+        neg = -hd
+        np.add(neg, lo, out=l[:nd])
+        np.add(neg, hi, out=u[:nd])
         return hd
 
     def _set_force_bounds(self, fz_max, fz_min, in_contact) -> None:
@@ -322,13 +349,11 @@ class WholeBodyQp:
 
     def _solve_daqp(self, l, u, hd, in_contact) -> QpResult | None:
         """DAQP's solution, or None when it has none."""
-        sense = self._sense
-        sense[:] = 0
-        sense[l == u] = _DAQP_EQUALITY
+        sense = self._sense_of.take((l == u).view(np.uint8))
         # (DAQP copies its inputs: the constant parts of P and A stay intact.) Typically
         # 2-10 active-set iterations; the cap bounds a pathological tick.
         x, _, exitflag, info = daqp.solve(self.P, self.q, self.A, u, l, sense, iter_limit=1000)
-        if exitflag in _DAQP_OK and np.isfinite(x.sum()):
+        if exitflag in _DAQP_OK and math.isfinite(x.sum()):
             return self._result(x, hd, in_contact, "daqp", int(info["iterations"]))
         return None
 
@@ -368,18 +393,18 @@ class WholeBodyQp:
         the arm torques likewise when the QP drives the arms."""
         nv = self.nv
         nb, nl = len(self.base_v), self._nl
-        tau = self.A[nb:nl] @ x + hd[nb:nl]
+        tau = np.dot(self.A[nb:nl], x) + hd[nb:nl]
         np.minimum(tau, self.effort, out=tau)
         np.maximum(tau, -self.effort, out=tau)
         tau_arms = None
         if self.arm_effort is not None:
-            tau_arms = self.A[nl:self.n_dyn] @ x + hd[nl:]
+            tau_arms = np.dot(self.A[nl:self.n_dyn], x) + hd[nl:]
             np.minimum(tau_arms, self.arm_effort, out=tau_arms)
             np.maximum(tau_arms, -self.arm_effort, out=tau_arms)
             self.last_tau_arms = tau_arms
         vdot = x[:nv]
         nff = self.nf_feet
-        f = x[nv:nv + nff] * np.repeat(in_contact, 3)
+        f = x[nv:nv + nff] * self._contact_columns(in_contact)[0]
         hand = x[nv + nff:] * self.scale if self.n_hands else None
         self.last_tau = tau
         self.failures = 0
