@@ -13,7 +13,7 @@ Example (see ``scenarios/valve_seed7.yaml``)::
     agent: my_pkg.solver:Solver    # or path/to/solver.py:Solver; omit for the built-in agent
     agent_params: {params: params/agents/goal_planner.yaml}
     seconds: 30            # stop earlier than the task's limit
-    plant: {time_step: 0.001, contact_approximation: lagged}
+    plant: {time_step: 0.002, contact_approximation: similar}
     sleep: {enabled: true, rest_time: 0.5}   # resting free objects sleep (task 6)
     scene: {variation: false}   # true: the scene itself drawn from the seed (tasks 1, 2, 4-6)
     randomize: {enabled: false}   # domain randomisation from the seed (pr2_drake.randomize)
@@ -37,7 +37,7 @@ from pr2_drake.randomize import RandomizeSettings
 from pr2_drake.scene import StartPose
 from pr2_drake.sleep import SleepSettings
 from pr2_drake.tasks.base import FALL_HEIGHT
-from pr2_drake.testbed import TestbedConfig
+from pr2_drake.testbed import DEFAULT_CONTACT_APPROXIMATION, TestbedConfig
 
 FREE_RUN_SECONDS = 10.0  # length of an episode without a task, unless ``seconds`` says [s]
 MAX_SPEED = 100.0  # any generalized velocity beyond this [m/s or rad/s] = diverged
@@ -54,13 +54,14 @@ class PlantSettings:
     """The physics engine (Drake's discrete MultibodyPlant, SAP).
 
     Attributes:
-        time_step: physics step [s]; None (the default) = the task's (1 ms; task 6: 2 ms).
-        contact_approximation: "lagged" (cheapest), "sap", "similar" or "tamsi".
+        time_step: physics step [s]; None (the default) = the task's (2 ms unless its YAML
+            says otherwise; :data:`pr2_drake.testbed.DEFAULT_TIME_STEP`).
+        contact_approximation: "similar" (the default), "lagged", "sap" or "tamsi".
         contact_model: "point" or "hydroelastic_with_fallback" / "hydroelastic".
     """
 
     time_step: typing.Optional[float] = None
-    contact_approximation: str = "lagged"
+    contact_approximation: str = DEFAULT_CONTACT_APPROXIMATION
     contact_model: str = "point"
 
 

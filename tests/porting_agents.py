@@ -3,6 +3,8 @@ keys (run in the competition sandbox, so a missing key ends the episode ``agent_
 
 import numpy as np
 
+from pr2_drake.testbed import DEFAULT_TIME_STEP  # the tasks' physics step (task 3's here)
+
 
 class OriginalKeysAgent:
     """Raises unless the observation carries the original's keys with consistent values."""
@@ -12,7 +14,7 @@ class OriginalKeysAgent:
     def next_action(self, obs):
         agent = obs["agent"]
         step = obs["current_sim_step"]
-        if step != round(obs["time"] / 0.001):
+        if step != round(obs["time"] / DEFAULT_TIME_STEP):
             raise AssertionError(f"current_sim_step {step} at time {obs['time']}")
         if not np.allclose(agent["start_pos"], obs["start_pos"]) or \
                 not np.allclose(agent["start_orient"], obs["start_orient"]):

@@ -12,6 +12,7 @@ from pr2_drake.compete.sandbox import SandboxLimits
 from pr2_drake.run import run_episode
 from pr2_drake.scenario import Scenario
 from pr2_drake.scene import StartPose
+from pr2_drake.testbed import DEFAULT_TIME_STEP
 
 HOSTILE = Path(__file__).with_name("hostile") / "hostile_agents.py"
 ON_THE_ROAD = StartPose(x=1.0, y=0.0, yaw=0.0)  # task 1: "task_region" (5 points) at once
@@ -99,7 +100,7 @@ def test_a_system_agent_in_the_sandbox_matches_the_same_agent_in_process(task, s
 
     scenario = Scenario(task=task, seed=0, agent=spec, seconds=0.3)
     r = run_sandboxed_episode(scenario, limits=LIMITS)
-    assert r["steps"] == 300 and r["termination"] == "timeout"
+    assert r["steps"] == round(0.3 / DEFAULT_TIME_STEP) and r["termination"] == "timeout"
     cls = load_agent_class(spec)
     episode = Episode(scenario, lambda b, tb: wire_system(instantiate_agent(
         cls, priors=dict(tb.scene.priors), task=task, seed=0, **agent_params(scenario)))(b, tb))

@@ -23,6 +23,7 @@ from pr2_drake.porting.clients import (
 from pr2_drake.porting.controller_server import ControllerServer
 from pr2_drake.porting.session import ControllerServerConfig
 from pr2_drake.scenario import Scenario
+from pr2_drake.testbed import DEFAULT_TIME_STEP
 
 ROOT = Path(__file__).resolve().parents[1]
 SOLVER = ROOT / "examples" / "pr2_solver" / "solver.py"
@@ -42,7 +43,8 @@ def test_an_original_style_solver_walks_task1_through_the_tcp_server():
         srv.start()
         report = run_episode(Scenario(task=1, seed=0, seconds=5.0, agent=f"{SOLVER}:TaskSolver",
                                       agent_params={"port": srv.address[1]}))
-        assert srv.requests == 5000 and srv.errors == 0  # one per physics step
+        # one per physics step
+        assert srv.requests == round(5.0 / DEFAULT_TIME_STEP) and srv.errors == 0
     assert report["termination"] == "timeout", report  # not "fall"
     # The start region ends at x = 0.2 m and the task region begins at x = 0.6 m.
     assert [e["item"] for e in report["items"]] == ["task_region"], report
@@ -78,7 +80,7 @@ def test_error_replies_name_the_fault_and_keep_the_connection(server):
     # A second connection is served too, as a new episode (time restarts).
     with ControllerClient(*server.address) as client:
         assert client.get_cmd(obs, 0.0, 0.0, 0.0)["time"] == 0.0
-        assert client.get_cmd(obs, 0.0, 0.0, 0.0)["time"] == pytest.approx(0.001)
+        assert client.get_cmd(obs, 0.0, 0.0, 0.0)["time"] == pytest.approx(DEFAULT_TIME_STEP)
 
 
 def test_an_impossible_frame_gets_an_error_then_the_connection_closes(server):
@@ -194,7 +196,7 @@ def test_a_sandboxed_solver_uses_the_in_process_client():
     r = run_sandboxed_episode(Scenario(task=1, seed=0, seconds=0.3,
                                        agent=f"{agent}:InProcessWalker"),
                               limits=SandboxLimits(step_seconds=2.0, startup_seconds=60.0))
-    assert r["termination"] == "timeout" and r["steps"] == 300, r
+    assert r["termination"] == "timeout" and r["steps"] == round(0.3 / DEFAULT_TIME_STEP), r
 
 
 @pytest.mark.parametrize("flags, named", [

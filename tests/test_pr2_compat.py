@@ -19,6 +19,7 @@ from pr2.solver import TaskSolverBase
 from pr2.tcp import PersistentTcpClient, TcpClient, bin2int, bin2json, int2bin, json2bin
 from pr2_drake.porting.clients import request_from_obs
 from pr2_drake.porting.controller_server import ControllerServer, ServerLimits
+from pr2_drake.testbed import DEFAULT_TIME_STEP
 
 ROOT = Path(__file__).resolve().parents[1]
 FOLDER = Path(__file__).with_name("pr2_style_solvers")
@@ -135,7 +136,7 @@ def test_clients_exchange_exit_and_reconnect(quick_server):
     assert len(bin2json(TcpClient("0.0.0.0", port).send(request))["effort"]) == 10
     client = PersistentTcpClient("127.0.0.1", port)
     assert bin2json(client.send(request))["time"] == 0.0
-    assert bin2json(client.send(request))["time"] == pytest.approx(0.001)
+    assert bin2json(client.send(request))["time"] == pytest.approx(DEFAULT_TIME_STEP)
     deadline = time.monotonic() + 30
     while "(idle for 0.3 s)" not in quick_server.log_text.getvalue():  # the server closed it
         assert time.monotonic() < deadline, quick_server.log_text.getvalue()

@@ -78,8 +78,12 @@ def test_bad_obstacles_and_options_raise_naming_them():
 
 
 def test_the_robot_steps_over_a_6cm_box_without_touching_it_or_falling():
+    # The rig's own walking parameters (walking.yaml + walking_stairs.yaml: swings over an edge
+    # lift longer before they move). With walking.yaml's alone the second sole's toe crossed
+    # the box's near edge 2.5 mm above it (1 ms, "lagged"): any change of the walk's physics
+    # (the 2 ms step, the "similar" contact approximation) made it graze; with these, 4 cm.
     planner = StepOverFootstepPlanner(_velocity(), [BOX])
-    sim = StairsSim(PatchTerrain([]), params=PARAMS, footsteps=planner, obstacles=[BOX])
+    sim = StairsSim(PatchTerrain([]), footsteps=planner, obstacles=[BOX])
     touched = []
     lowest_over_box = [np.inf]
 

@@ -9,6 +9,7 @@ from pydrake.systems.analysis import Simulator
 from conftest import standing_simulator
 from pr2_drake.camera import CameraSettings
 from pr2_drake.ports import (
+    EFFORT_ARMS,
     EFFORT_LEGS,
     JOINT_STATE_SIZE,
     P_WB,
@@ -88,6 +89,32 @@ def test_effort_is_clamped_to_peak_torque_and_reported():
     np.testing.assert_allclose(applied, load_robot_params().effort_limits("legs"))
 
 
+def test_effort_limits_are_a_context_parameter_of_both_paths():
+    from pr2_drake.actuation import EFFORT_SOURCE, SPRING_SOURCE
+
+    simulator, testbed, ctx = _simulator()
+    adapter = testbed.GetSubsystemByName("actuation")
+    a_ctx = adapter.GetMyMutableContextFromRoot(ctx)
+    peak = np.concatenate([load_robot_params().effort_limits(g) for g in ("arms", "legs")])
+    np.testing.assert_array_equal(adapter.effort_limits(a_ctx), peak)
+    adapter.set_effort_limits(a_ctx, 0.5 * peak)  # e.g. a weaker motor, per episode
+    testbed.GetInputPort("legs_command").FixValue(ctx, JointGroupCommand.effort(np.full(10, 1e3)))
+    source = adapter.GetOutputPort("actuation_source")
+    assert source.Eval(a_ctx) == EFFORT_SOURCE  # efforts only: no Python at the physics step
+    simulator.AdvanceTo(0.002)
+    applied = testbed.GetOutputPort("joint_state").Eval(ctx)[EFFORT_LEGS]
+    np.testing.assert_allclose(applied, 0.5 * peak[8:])
+    # A position command far from the state saturates at the same halved limits.
+    testbed.GetInputPort("arms_command").FixValue(
+        ctx, JointGroupCommand.position(np.full(8, 3.0), np.full(8, 1e3), np.zeros(8)))
+    assert source.Eval(a_ctx) == SPRING_SOURCE
+    simulator.AdvanceTo(0.004)
+    applied = testbed.GetOutputPort("joint_state").Eval(ctx)[EFFORT_ARMS]
+    np.testing.assert_allclose(np.abs(applied), 0.5 * peak[:8])
+    with pytest.raises(ValueError, match="effort limits must be 18 positive"):
+        adapter.set_effort_limits(a_ctx, -peak)
+
+
 def test_position_mode_tracks_an_arm_step():
     simulator, testbed, ctx = standing_simulator()
     target = load_robot_params().default_positions("arms")
@@ -106,8 +133,9 @@ def test_velocity_mode_moves_the_joint():
     simulator, testbed, ctx = standing_simulator()
     values = np.zeros(8)
     values[4] = 1.0  # r_shoulder_y at 1 rad/s
+    damping = np.minimum(80.0, testbed.stable_gain_limits()["arms"][1])  # stable at the step
     testbed.GetInputPort("arms_command").FixValue(
-        ctx, JointGroupCommand.velocity(values, np.full(8, 80.0))
+        ctx, JointGroupCommand.velocity(values, damping)
     )
     q0 = testbed.GetOutputPort("joint_state").Eval(ctx)[Q_ARMS][4]
     simulator.AdvanceTo(0.5)
@@ -157,15 +185,22 @@ def test_bad_config_is_rejected():
         build_testbed(TestbedConfig(camera=CameraSettings(enabled=True, quality="ultra")))
 
 
-def test_physics_step_is_the_tasks_unless_the_scenario_sets_one(tmp_path):
+def test_physics_step_is_the_tasks_unless_the_scenario_sets_one(tmp_path, monkeypatch):
     from pr2_drake.scenario import load_scenario
+    from pr2_drake.tasks import get_task
     from pr2_drake.tasks.base import TaskSpec
 
-    assert TestbedConfig().time_step == 0.001  # flat ground
-    assert TestbedConfig(task=1).time_step == 0.001
+    monkeypatch.setattr(get_task(5).spec, "time_step", 0.004)  # a task YAML's time_step
+    assert TestbedConfig(task=5).time_step == 0.004
+    assert load_scenario(None, ["task=5", "plant.time_step=0.001"]).testbed_config(
+    ).time_step == 0.001
+    monkeypatch.undo()
+
+    assert TestbedConfig().time_step == 0.002  # flat ground: DEFAULT_TIME_STEP
+    assert TestbedConfig(task=1).time_step == 0.002
     assert TestbedConfig(task="object_search").time_step == 0.002  # tasks/6_*.yaml
     assert load_scenario(None, ["task=6"]).testbed_config().time_step == 0.002
-    assert load_scenario(None, ["task=6", "plant.time_step=0.001"]).testbed_config(
+    assert load_scenario(None, ["task=1", "plant.time_step=0.001"]).testbed_config(
     ).time_step == 0.001
     bad = tmp_path / "9_bad.yaml"
     bad.write_text("id: 9\nname: bad\ntitle: Bad\ntime_limit: 5.0\ntime_step: 0.5\n"

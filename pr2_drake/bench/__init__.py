@@ -12,6 +12,10 @@
     pr2-drake bench perception   the task-6 object detector on rendered head-camera views
     pr2-drake bench parser       the task-6 instruction parser's accuracy
     pr2-drake bench sandbox      what the competition's process boundary costs per tick
+    pr2-drake bench fidelity     one episode per task at two physics steps: outcomes, contact
+                                 force peaks, CoM and sole deviations
+    pr2-drake bench speed        walking and every task's default agent: real-time factor of
+                                 this code against a baseline commit, CPU time, the split
     pr2-drake bench render       the path tracer: seconds per frame and noise against samples
     pr2-drake bench learning     the learning envs: steps/s per level, reset time, SB3 PPO
 
@@ -30,7 +34,7 @@ BENCHMARKS = {"sim": "sim", "camera": "camera", "startup": "startup",
               "scene-step": "scene_step", "walking": "walking", "whole-body": "whole_body",
               "jumping": "jumping", "stairs": "stairs", "perception": "perception",
               "parser": "parser", "sandbox": "sandbox", "render": "render",
-              "learning": "learning"}
+              "learning": "learning", "speed": "speed", "fidelity": "fidelity"}
 ALL = ("startup", "sim", "camera", "walking")  # ``pr2-drake bench all``
 
 

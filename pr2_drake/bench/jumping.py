@@ -7,7 +7,7 @@ Forward jumps fly at ``--forward-apex``, or higher where the distance needs a ta
 above the controller's ``max_speed`` (:func:`forward_apex`: 0.3 m flies at 0.12 m).
     python -m pr2_drake.bench.jumping [...]
 
-Runs the testbed (flat ground, discrete SAP 1 ms) in closed loop with the JumpController and the
+Runs the testbed (flat ground, discrete SAP at the default physics step) in closed loop with the JumpController and the
 ArmPosture block: stand 1 s, jump (take-off at 2.0 s plus a small per-repeat offset), then 3 s
 after landing. Per case it prints: requested and achieved CoM apex (rise above the take-off CoM
 height), highest lowest-sole point (both soles off the ground), landing error (horizontal
@@ -178,7 +178,10 @@ def main(argv: list[str] | None = None) -> int:
     if a.repeats < 1:
         ap.error("--repeats must be >= 1")
     repeats = 2 if a.quick else a.repeats
-    print(f"jumps on flat ground, physics 1 ms, whole-body QP 250 Hz; {repeats} repeats each "
+    from pr2_drake.testbed import DEFAULT_TIME_STEP
+
+    print(f"jumps on flat ground, physics {DEFAULT_TIME_STEP * 1e3:g} ms, whole-body QP 250 Hz; "
+          f"{repeats} repeats each "
           "(take-off 2.00 s + 0.01 s x repeat); medians; falls = within 3 s of landing")
     print(f"{'case':<22}{'n':>3} {'apxC':>5} {'riseC':>5} {'sole':>5} {'air':>4} "
           f"{'dist':>5} {'land':>5} {'fall':>3}  {'peak/limit hipy/knee/ankle':<16} "

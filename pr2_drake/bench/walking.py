@@ -4,7 +4,7 @@
                             [--push-time 0.2] [--push-phases 4]
     python -m pr2_drake.bench.walking [--quick]
 
-Runs the testbed (flat ground, discrete SAP 1 ms) in closed loop with the WalkingController
+Runs the testbed (flat ground, discrete SAP at the default physics step) in closed loop with the WalkingController
 and the ArmPosture block, and prints one table row per scenario: commanded and achieved mean
 velocity, whether the robot fell, and the wall-clock real-time factor. Then the real-time factor
 of 0.3 m/s walking (median of ``--repeats`` runs) and the split of wall time between the plant
@@ -264,10 +264,12 @@ def main(argv: list[str] | None = None) -> int:
           f"median {statistics.median(rates):.2f} (runs: {', '.join(f'{r:.2f}' for r in rates)})"
           f"; target >= 1.0")
     ms_tick = 1e3 * med.controller / max(med.ticks, 1)
-    ms_step = 1e3 * (med.wall - med.controller) / (rtf_seconds / 0.001)
+    from pr2_drake.testbed import DEFAULT_TIME_STEP
+
+    ms_step = 1e3 * (med.wall - med.controller) / (rtf_seconds / DEFAULT_TIME_STEP)
     print(f"wall time split (median run, perf_counter): controller {med.controller_fraction:.0%}"
           f" ({ms_tick:.2f} ms per {med.ticks} control ticks), plant + actuation + framework"
-          f" {1 - med.controller_fraction:.0%} ({ms_step:.2f} ms per 1 ms physics step)")
+          f" {1 - med.controller_fraction:.0%} ({ms_step:.2f} ms per {DEFAULT_TIME_STEP * 1e3:g} ms physics step)")
     if not args.no_profile:
         split = profile_split(2.0 if q else 5.0)
         print("time split under cProfile (adds overhead): "

@@ -3,7 +3,7 @@
     pr2-drake bench whole-body [--quick] [--repeats 3] [--baseline REF] [--no-baseline]
     python -m pr2_drake.bench.whole_body [--quick]
 
-Flat ground, discrete SAP 1 ms, the walking controller with the arms in the QP
+Flat ground, discrete SAP at the default physics step, the walking controller with the arms in the QP
 (``WalkingController(arms="effort")``). Rows:
 
 - hand force: standing, the left hand held in front, a constant horizontal force of 30 N or 50 N

@@ -31,8 +31,11 @@ class ArmPosture(LeafSystem):
         self._cmd = JointGroupCommand.position(q, np.full(N_ARMS, stiffness),
                                                np.full(N_ARMS, damping))
         cmd = self._cmd  # the allocator must not capture self (pr2_drake.lifetime)
+        # A constant: computed once, not at every physics step (the command object stays the
+        # same, so the actuation adapter's per-command work is done once too).
         self.DeclareAbstractOutputPort("arms_command",
-                                       lambda: AbstractValue.Make(cmd), weak_calc(self._calc))
+                                       lambda: AbstractValue.Make(cmd), weak_calc(self._calc),
+                                       prerequisites_of_calc={self.nothing_ticket()})
 
     def _calc(self, context, output) -> None:
         output.set_value(self._cmd)

@@ -3,7 +3,8 @@
 What the original's ``launch_task.sh`` did, on pr2-drake:
 
 1. start task N's controller server (``pr2-drake controller-server --task N``, a process of
-   its own) on ``port`` (default 8800, the original's; with 0, a free one);
+   its own, one request per 1 ms step of :class:`pr2.env.Env`) on ``port`` (default 8800,
+   the original's; with 0, a free one);
 2. run the folder's own ``task_launcher.py N`` from the folder's parent (as the original ran
    ``python examples/task_launcher.py N`` from its root), or, if the folder has none,
    :mod:`pr2.launcher`, which does the same; its ``Task passed`` / ``Task failed`` line is
@@ -142,8 +143,11 @@ def start_server(task: int, port: int) -> tuple[subprocess.Popen, str]:
     Raises:
         ValueError: it exited instead (its own error line is on stderr).
     """
+    from pr2.env.env import PHYSICS_DT  # the launcher's Env calls the server once per step
+
     server = subprocess.Popen([sys.executable, "-m", "pr2_drake.cli", "controller-server",
-                               "--task", str(task), "--port", str(port)],
+                               "--task", str(task), "--port", str(port),
+                               "--request-period", repr(PHYSICS_DT)],
                               stdout=subprocess.PIPE, text=True)
     line = server.stdout.readline()
     if "listening on " not in line:

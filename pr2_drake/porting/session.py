@@ -7,8 +7,9 @@ original platform's ``taskN_controller`` (table: params/controllers/task_servers
 built-in whole-body controller (:class:`pr2_drake.controllers.jumping.JumpController`).
 
 Time: a request's ``time`` field, when present, is the simulation time; otherwise the n-th
-valid request (from 0) of the session is at ``n * request_period`` (default 0.001 s, one
-physics step: the original's solvers call the server once per step). The control law runs
+valid request (from 0) of the session is at ``n * request_period`` (default one physics step:
+the testbed's default, 2 ms, or the task's for :meth:`ControllerServerConfig.for_task`; the
+original's solvers call the server once per step). The control law runs
 every ``control_period`` of that time (4 ms, in walking.yaml) and the torques are held in
 between. A time earlier than the last one restarts the controller (a new episode).
 """
@@ -24,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from pr2_drake.porting.protocol import JUMP_STATE, ProtocolError, parse_request
+from pr2_drake.testbed import DEFAULT_TIME_STEP, task_time_step
 
 #: The folder (in the data root) of the walking and jump parameter files.
 PARAMS_DIR = "params/controllers"
@@ -59,7 +61,7 @@ class ControllerServerConfig:
     jumping: str = "jumping.yaml"
     jump_overrides: str | None = None
     jump_apex: float = 0.18
-    request_period: float = 0.001
+    request_period: float = DEFAULT_TIME_STEP
 
     def validate(self) -> None:
         if self.terrain not in TERRAINS:
@@ -87,7 +89,7 @@ class ControllerServerConfig:
         if unknown:
             raise ValueError(f"{TASK_SERVERS}: task {i}: unknown key(s) {unknown}; "
                              f"expected {sorted(known)}")
-        return replace(ControllerServerConfig(task=i), **entry)
+        return replace(ControllerServerConfig(task=i, request_period=task_time_step(i)), **entry)
 
 
 def param_file(name: str) -> str:

@@ -4,10 +4,10 @@ Scene: a red hand wheel (0.54 m across, horizontal, axis vertical) on a revolute
 world, on a grey stem, at hand height for KUAVO. The rim (a ring of short cylinders), spokes and
 hub collide with the robot, so pushing the wheel with the arm's distal end turns it. Resistance
 is the joint's viscous damping (Drake joint damping) plus a Coulomb-like torque
-``-friction_torque * tanh(w / friction_speed)`` from :class:`ValveFriction` on the plant's
-applied generalized force input (our choice: Drake's discrete solver has no joint Coulomb
-friction; the smoothed torque is explicit but its slope is far below what destabilises the
-wheel's inertia at 1 ms).
+``-friction_torque * tanh(w / friction_speed)`` (:class:`ValveFriction`; the torque a Context
+parameter, which the domain randomisation draws) on the plant's applied generalized force input (our choice: Drake's discrete solver
+has no joint Coulomb friction; the smoothed torque is explicit but its slope is far below what
+destabilises the wheel's inertia at the 2 ms step).
 
 Pick: ``pick`` with a hand latches while the hand sphere centre is inside the enlarged valve
 volume (``scene.pick_volume``: 0.30 m horizontal radius about the axis, within a height band);

@@ -8,7 +8,7 @@ turn as it sweeps by) or by jumping. No heading noise.
 
 The bar is a free body on a prismatic joint (axis = direction of motion) whose motion is
 prescribed by a stiff implicit PD actuator of the plant (SAP treats it implicitly, so it is stable
-at any stiffness) tracking the profile of :class:`BarMotion`, wired through
+at any stiffness) tracking the profile of :func:`bar_motion`, wired through
 ``Scene.add_systems``. The bar collides with the robot (the robot cannot stop it: the PD force is
 up to 3000 N); it never touches the ground (it rides 1 cm above it on its joint).
 
@@ -55,9 +55,9 @@ from pydrake.multibody.tree import (
     PrismaticJoint,
     SpatialInertia,
 )
-from pydrake.systems.framework import BasicVector, LeafSystem
+from pydrake.systems.primitives import TrajectorySource
+from pydrake.trajectories import PiecewisePolynomial
 
-from pr2_drake.lifetime import weak_calc
 from pr2_drake.materials import add_textured_box, add_textured_boxes
 from pr2_drake.scene import GROUND_FRICTION, Scene, add_flat_ground
 from pr2_drake.tasks.base import EpisodeStatus, Referee, ScoreEvent, TaskDefinition, TaskSpec
@@ -98,18 +98,16 @@ class BarProfile:
         return self.start_time < t <= self.stop_time + tolerance
 
 
-class BarMotion(LeafSystem):
-    """Output port ``desired_state``: [q_d, v_d] of the bar's prismatic joint at time t."""
-
-    __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
-
-    def __init__(self, profile: BarProfile):
-        super().__init__()
-        self.profile = profile
-        self.DeclareVectorOutputPort("desired_state", 2, weak_calc(self._calc))
-
-    def _calc(self, context, output: BasicVector) -> None:
-        output.SetFromVector(np.array(self.profile.at(context.get_time())))
+def bar_motion(profile: BarProfile) -> TrajectorySource:
+    """Output port ``desired_state`` = [q_d, v_d] of the bar's prismatic joint at time t: the
+    profile as a first-order hold (at rest, constant speed, at rest) and its derivative, in
+    Drake's C++ (a TrajectorySource; before and after its breaks it holds its end values)."""
+    t_stop = profile.stop_time
+    breaks = [min(0.0, profile.start_time) - 1.0, profile.start_time, t_stop, t_stop + 1.0]
+    end = profile.start_offset + profile.travel
+    q = np.array([[profile.start_offset, profile.start_offset, end, end]])
+    return TrajectorySource(PiecewisePolynomial.FirstOrderHold(breaks, q),
+                            output_derivative_order=1)
 
 
 @dataclass
@@ -316,7 +314,7 @@ class Task(TaskDefinition):
                             width=layout.size[1] + 0.02)
 
         def add_bar_motion(builder, plant_):
-            motion = builder.AddNamedSystem("bar_motion", BarMotion(layout.profile))
+            motion = builder.AddNamedSystem("bar_motion", bar_motion(layout.profile))
             builder.Connect(motion.get_output_port(), plant_.get_desired_state_input_port(instance))
 
         return Scene(
