@@ -337,3 +337,25 @@ def test_a_hand_hanging_under_a_table_edge_backs_out_before_it_rises():
     assert not tab.contains(back, 0.07) and back[1] > -0.3 - 0.07 - 0.02
     assert out_from_under(np.array([0.1, -0.45, 0.50]), facing, tab, margin) is None  # clear
     assert out_from_under(np.array([0.1, -0.27, 0.65]), facing, tab, margin) is None  # above
+
+
+def test_a_pick_that_misses_from_one_side_walks_round_to_the_next_free_side():
+    # The hand never closes on the object (no attachment): after ``pick_tries`` the robot
+    # lifts the hand, steps back and walks round to another side with floor on the map.
+    p_WO = np.array([2.3, 2.7, 0.63])
+    seq, ctx = sequencer(detector=StubDetector(p_WO))
+    sim = searching(seq, ctx, 2.0, 1.95, math.pi / 2)
+    sim.AdvanceTo(1.0)
+    m = seq.mutable_memory(ctx)
+    look = np.array(m.side)
+    assert np.allclose(look, [0, -1])  # reachable from the look side: no walk round yet
+    m.stage, m.t_stage = Stage.PICK, 1.0
+    sim.AdvanceTo(1.0 + seq.p.pick_tries * seq.p.pick_timeout + 0.1)
+    m = seq.memory(ctx)
+    assert m.stage == Stage.RETRACT and m.retry_side is not None
+    assert not np.allclose(m.retry_side, look) and np.allclose(m.sides_tried[0], look)
+    sim.AdvanceTo(sim.get_context().get_time() + seq.p.back_time + 2 * seq.p.reach_time + 1.0)
+    m = seq.memory(ctx)
+    assert m.stage == Stage.NAVIGATE and m.nav_then == Stage.APPROACH
+    assert not np.allclose(m.side, look) and m.retry_side is None
+    assert GRID.inflated(seq.nav.robot_radius).free(m.path[-1])

@@ -116,6 +116,8 @@ class SearchMemory(SequencerMemory):
         pick_goal: the pose to pick from; nav_then: the stage after NAVIGATE.
         hand: the hand that picks (0 left, 1 right); hand_path, hand_t0: its waypoints and
             their start time [s]; pick_tries: tries so far.
+        sides_tried: the table sides (outward normals) a pick missed from; retry_side: the
+            side to walk round to after stepping back from a missed pick (None: none).
         r_pick, o_pick: hand and object at the pick in the base's heading frame (m);
         hand_over_top: the hand centre above the pick table's top (m); up_H: the held
             object's vertical in the hand frame (None: not kept vertical).
@@ -150,6 +152,8 @@ class SearchMemory(SequencerMemory):
     hand_path: list = field(default_factory=list)
     hand_t0: float = 0.0
     pick_tries: int = 0
+    sides_tried: list = field(default_factory=list)
+    retry_side: Optional[np.ndarray] = None
     r_pick: np.ndarray = field(default_factory=lambda: np.zeros(3))
     o_pick: np.ndarray = field(default_factory=lambda: np.zeros(3))
     hand_over_top: float = 0.0

@@ -11,6 +11,7 @@ Positions in m, world frame W.
 from __future__ import annotations
 
 import math
+from typing import Optional
 
 import numpy as np
 
@@ -163,8 +164,7 @@ class SearchStages:
         elif t - m.t_stage > p.pick_timeout:
             m.pick_tries += 1
             if m.pick_tries >= p.pick_tries:
-                m.failure = "pick failed"
-                self._go(m, Stage.FAILED, t)
+                self._pick_missed(m, p_WB, t)
             else:
                 m.targets[m.hand] = self._grasp_point(
                     m, max(p.grasp_offset - 0.03 * m.pick_tries, 0.03))
@@ -237,7 +237,28 @@ class SearchStages:
     def _back(self, m: SearchMemory, now: Now, context) -> None:
         m.cmd = np.array([-self.p.back_speed, 0.0, 0.0])
         if now.t - m.t_stage >= self.p.back_time:
-            self._go(m, Stage.DONE, now.t)
+            n, m.retry_side = m.retry_side, None
+            if n is None:
+                self._go(m, Stage.DONE, now.t)
+            elif not self._walk_round(m, m.surfaces[m.place], n, now.p_WB, now.t):
+                m.failure = "pick failed"
+                self._go(m, Stage.FAILED, now.t)
+
+    def _pick_missed(self, m: SearchMemory, p_WB, t: float) -> None:
+        """After ``pick_tries`` misses: hand up, step back and walk round to the next side of
+        the top (nearest the object, with floor in front on the map, not tried yet); FAILED
+        when there is none."""
+        m.sides_tried.append(np.array(m.side, float))
+        n = self._next_pick_side(m, m.surfaces[m.place])
+        m.log.append(f"{t:7.2f} pick missed from side {np.round(m.side, 2).tolist()}; "
+                     f"next side {None if n is None else np.round(n, 2).tolist()}")
+        if n is None:
+            m.failure = "pick failed"
+            self._go(m, Stage.FAILED, t)
+            return
+        m.retry_side = n
+        self._start_hand_path(m, [self.model.hand_point(m.hand)[0] + [0.0, 0.0, 0.10]], t)
+        self._go(m, Stage.RETRACT, t)
 
     @staticmethod
     def _stand(m: SearchMemory, now: Now, context) -> None:
@@ -378,18 +399,44 @@ class SearchStages:
         look = best_side(self._grid(m), tab, self.p.look_distance, self.nav.robot_radius)
         # Stand at the side nearest the object (when there is room), else the look side.
         n = self._pick_side(m, tab, float(p_WB[2]))
-        if not np.allclose(n, look):
-            m.hand, stage = self._pick_pose(m, tab, n, self.p.stage_distance)
-            if self._plan(m, p_WB, stage):
-                m.hand, m.pick_goal = self._pick_pose(m, tab, n, self.p.pick_standoff)
-                m.side = n  # walk round the table first
-                m.nav_then = Stage.APPROACH
-                self._go(m, Stage.NAVIGATE, t)
-                return
+        m.sides_tried = []
+        if not np.allclose(n, look) and self._walk_round(m, tab, n, p_WB, t):
+            return
         m.hand, m.pick_goal = self._pick_pose(m, tab, look, self.p.pick_standoff)
         m.side = look
         m.goal = m.pick_goal
         self._go(m, Stage.APPROACH, t)
+
+    def _walk_round(self, m: SearchMemory, tab: Table, n: np.ndarray, p_WB, t: float) -> bool:
+        """Walk to the pick pose across side ``n`` of ``tab`` (via its stage point), then
+        APPROACH; False (nothing changed but the path) when no path reaches it."""
+        hand, stage = self._pick_pose(m, tab, n, self.p.stage_distance)
+        if not self._plan(m, p_WB, stage):
+            return False
+        m.hand, m.pick_goal = self._pick_pose(m, tab, n, self.p.pick_standoff)
+        m.side = n
+        m.nav_then = Stage.APPROACH
+        self._go(m, Stage.NAVIGATE, t)
+        return True
+
+    def _next_pick_side(self, m: SearchMemory, tab: Table) -> Optional[np.ndarray]:
+        """The side of ``tab`` not in ``m.sides_tried`` whose edge is nearest the object, with
+        free floor (on the map inflated by the robot's radius) in front of the object; None
+        when there is none."""
+        d = m.p_WO[:2] - tab.center
+        g = self._grid(m).inflated(self.nav.robot_radius)
+        best, best_depth = None, math.inf
+        for n in (np.array([1.0, 0.0]), np.array([-1.0, 0.0]), np.array([0.0, 1.0]),
+                  np.array([0.0, -1.0])):
+            if any(np.allclose(n, s) for s in m.sides_tried):
+                continue
+            half, tan, half_len = tab.side_frame(n)
+            along = float(np.clip(d @ tan, -half_len, half_len))
+            depth = half - float(d @ n)
+            if depth < best_depth and g.free(
+                    tab.center + n * (half + self.p.stage_distance) + tan * along):
+                best, best_depth = n, depth
+        return best
 
     def _pick_pose(self, m: SearchMemory, tab: Table, n: np.ndarray, standoff: float):
         """(hand, (x, y, yaw)): the hand on the object's side and the pose ``standoff`` from
