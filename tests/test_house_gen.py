@@ -133,3 +133,19 @@ def test_a_generated_house_builds_and_its_priors_describe_it():
                                  "instruction"}  # as in the task's own house
     assert task.variation["objects"] == {k: o["table"]
                                          for k, o in task.spec.scene["objects"].items()}
+
+
+def test_the_house_does_not_depend_on_the_string_hash_seed():
+    # Same seed, two processes with different PYTHONHASHSEED: the same house (a set's order
+    # once decided the order of the draws for the start poses and the objects' tables).
+    import os
+    import subprocess
+    import sys
+
+    code = ("import copy, numpy as np\nfrom pr2_drake.tasks import get_task\n"
+            "from pr2_drake.tasks.house_gen import generate_house\n"
+            "s = copy.deepcopy(get_task(6).spec.scene)\n"
+            "print(generate_house(s, np.random.default_rng(16)))\n")
+    out = [subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                          env={**os.environ, "PYTHONHASHSEED": h}).stdout for h in ("1", "2", "3")]
+    assert out[0] and out[0] == out[1] == out[2]

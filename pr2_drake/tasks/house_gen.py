@@ -311,7 +311,8 @@ def _draw(scene: dict, v: dict, rng):
         return None
     main = reached.pop()
     starts = {}
-    holders = {f["room"] for k, f in furniture.items() if k != scene["table"]}
+    # In furniture order (a set's order would follow the process's string hash seed).
+    holders = list(dict.fromkeys(f["room"] for k, f in furniture.items() if k != scene["table"]))
     for name in holders:
         start = _start(rooms[name], grid, labels, main, v, rng)
         if start is None:
