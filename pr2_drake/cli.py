@@ -231,6 +231,7 @@ def summarize(reports: list[dict[str, Any]]) -> dict[str, Any]:
         "completion_time_mean": float(np.mean(done_times)) if done_times else None,
         "completion_time_median": float(np.median(done_times)) if done_times else None,
         "mean_real_time_factor": float(np.mean([r["real_time_factor"] or 0 for r in reports])),
+        "scenario": reports[0].get("scenario", []),  # the switches on (Scenario.switches)
     }
 
 
@@ -264,7 +265,9 @@ def cmd_eval(args) -> int:
     task = task_id(base.task)
     jobs = args.jobs
     work = [replace(base, seed=s) for s in seeds]
-    print(f"evaluating task {task} over {len(seeds)} seeds with {jobs} job(s)", file=sys.stderr)
+    switches = "+".join(base.switches()) or "none"
+    print(f"evaluating task {task} over {len(seeds)} seeds with {jobs} job(s), scenario "
+          f"switches: {switches}", file=sys.stderr)
     if jobs == 1:
         reports = _collect(map(_eval_one, work), len(work))
     else:
@@ -276,7 +279,7 @@ def cmd_eval(args) -> int:
         with ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn")) as pool:
             reports = _collect(pool.map(_eval_one, work), len(work))
     summary = summarize(reports)
-    print(f"\ntask {task}: {summary['episodes']} episodes")
+    print(f"\ntask {task}: {summary['episodes']} episodes (scenario switches: {switches})")
     print(f"  success rate      {100 * summary['success_rate']:.1f} %")
     print(f"  full marks        {100 * summary['full_marks_rate']:.1f} %")
     print(f"  mean score        {summary['mean_score']:.2f} / {summary['max_score']:g}")

@@ -232,6 +232,10 @@ class Episode:
             "wall_time": None if wall_time is None else round(wall_time, 3),
             "real_time_factor": (round(t / sim_wall_time, 3) if sim_wall_time else None),
         }
+        if self.scenario.switches():
+            report["scenario"] = self.scenario.switches()  # the switches on (Scenario.switches)
+        if task is not None and task.variation is not None:
+            report["variation"] = task.variation  # the scene drawn (scene.variation)
         if self.message:
             report["message"] = self.message
         if self.physics is not None:

@@ -15,6 +15,7 @@ Example (see ``scenarios/valve_seed7.yaml``)::
     seconds: 30            # stop earlier than the task's limit
     plant: {time_step: 0.002, contact_approximation: similar}
     sleep: {enabled: true, rest_time: 0.5}   # resting free objects sleep (task 6)
+    scene: {variation: false}   # true: the scene itself drawn from the seed (tasks 1, 2, 4-6)
     randomize: {enabled: false}   # domain randomisation from the seed (pr2_drake.randomize)
     camera: {enabled: true, width: 320, height: 240, fps: 10}
     limits: {max_speed: 100.0}
@@ -82,6 +83,21 @@ class EpisodeLimits:
 
 
 @dataclass
+class SceneSettings:
+    """How the task's scene is made.
+
+    Attributes:
+        variation: False (the default): the task's own scene, as its YAML gives it. True: the
+            scene drawn from the episode seed within the ranges of the YAML's
+            ``scene.variation`` block (task 1 a rock field, task 2 the valve's height and
+            size, task 4 the slope, task 5 the risers and treads, task 6 a generated house;
+            task 3 has none); the priors describe the scene drawn.
+    """
+
+    variation: bool = False
+
+
+@dataclass
 class Scenario:
     """One episode, fully described.
 
@@ -104,6 +120,7 @@ class Scenario:
         limits: fall height without a task and the divergence bounds.
         sleep: when resting free objects sleep (no contacts computed until something comes
             near; :mod:`pr2_drake.sleep`); ``sleep: {enabled: false}`` turns it off.
+        scene: scene variation (``--set scene.variation=true``).
         randomize: domain randomisation (:mod:`pr2_drake.randomize`), off by default: physics,
             latency, observation noise and pushes drawn from the seed.
     """
@@ -121,6 +138,7 @@ class Scenario:
     start: typing.Optional[StartPose] = None
     limits: EpisodeLimits = field(default_factory=EpisodeLimits)
     sleep: SleepSettings = field(default_factory=SleepSettings)
+    scene: SceneSettings = field(default_factory=SceneSettings)
     randomize: RandomizeSettings = field(default_factory=RandomizeSettings)
 
     def validate(self) -> None:
@@ -155,13 +173,21 @@ class Scenario:
             raise ScenarioError(f"control_dt must be at least one physics step "
                                 f"({config.time_step:g} s), got {self.control_dt!r}")
 
+    def switches(self) -> list[str]:
+        """The scenario switches on in this episode, by name: ``scene.variation`` (a scene
+        drawn from the seed) and ``randomize`` (domain randomisation); empty for the task as
+        given. Reports, ``eval``'s summary, ``compete``'s results and the leaderboard state
+        them beside the scores."""
+        return (["scene.variation"] if self.scene.variation else []) + (
+            ["randomize"] if self.randomize.enabled else [])
+
     def testbed_config(self) -> TestbedConfig:
         """The testbed block's configuration for this scenario."""
         p = self.plant
         return TestbedConfig(
             task=self.task, seed=int(self.seed), time_step=p.time_step,
             contact_approximation=p.contact_approximation, contact_model=p.contact_model,
-            camera=self.camera, start=self.start,
+            camera=self.camera, start=self.start, variation=bool(self.scene.variation),
             randomize=self.randomize if self.randomize.enabled else None,
         )
 

@@ -74,6 +74,7 @@ class TestbedConfig:
         grasp_period: how often pick/release commands are sampled [s].
         scene_builder: without a task, ``f(plant, rng) -> Scene`` builds the scene instead of
             flat ground (benchmarks with their own terrain, e.g. ``bench stairs``).
+        variation: the task's scene drawn from the seed (:meth:`TaskDefinition.varied`).
         randomize: domain randomisation (:mod:`pr2_drake.randomize`): which of its blocks
             are built; None or off = none.
     """
@@ -91,6 +92,7 @@ class TestbedConfig:
     leg_gains: tuple[float, float] = (400.0, 8.0)
     grasp_period: float = 0.01
     scene_builder: Callable[[MultibodyPlant, np.random.Generator], Scene] | None = None
+    variation: bool = False
     randomize: RandomizeSettings | None = None
 
     def __post_init__(self) -> None:
@@ -169,6 +171,8 @@ class Testbed(Diagram):
             from pr2_drake.tasks import get_task
 
             self.task = get_task(config.task)
+            if config.variation:
+                self.task = self.task.varied(config.seed)
         self.camera = _resolve_camera(config.camera, self.task)
         # The fast preset draws the scene's boxes as Phong primitives (pr2_drake.materials).
         fast = self.camera.enabled and self.camera.quality == "low"

@@ -143,62 +143,58 @@ def test_testbed_exports_camera_capture_only_with_the_camera():
     assert not Testbed(TestbedConfig()).HasInputPort("camera_capture")
 
 
-def test_sequencer_asks_for_frames_only_while_it_looks():
-    from pr2_drake.agents.search.memory import SearchAgentParams, Stage
-    from pr2_drake.agents.search.sequencer import ObjectSearchSequencer
-    from pr2_drake.agents.search.instruction import Instruction
-    from pr2_drake.agents.search.navigation import NavigationParams
-    from pr2_drake.agents.search.perception import Detection
-    from pr2_drake.grasp import PickState
-    from pr2_drake.ports import BODY_STATE_SIZE, JOINT_STATE_SIZE
-    from pr2_drake.tasks import get_task
+def test_sequencer_asks_for_frames_to_map_and_to_look():
+    """Every camera sample while it looks, every 2nd while it scans, every 4th while it walks
+    (the map), none while it approaches, reaches or places."""
+    from pr2_drake.agents.search.memory import Stage
+    from tests.test_search_agent import StubDetector, searching, sequencer
 
-    class Found:
-        def find(self, rgb, depth, X_WC, target):
-            return Detection(target, 1.0, np.array([2.3, 2.7, 0.63]), 0.6, 0.05, (0.2, 0.15),
-                             100, (0, 0, 1, 1))
+    def captures(sim, seq, ctx, t0, t1):
+        out, t = [], t0
+        while t < t1 - 1e-9:
+            t += 0.02
+            sim.AdvanceTo(t)
+            m = seq.memory(ctx)
+            out.append((round(t, 2), m.stage, bool(seq.GetOutputPort("camera_capture").Eval(ctx))))
+        return out
 
-    class Kinematics:
-        def camera_pose(self, body_state, joint_state):
-            from pydrake.math import RigidTransform
+    seq, ctx = sequencer(detector=StubDetector(np.array([2.3, 2.7, 0.63])))
+    seq.GetInputPort("body_state").FixValue(ctx, _body(2.0, 1.0, 0.0))
+    from pydrake.systems.analysis import Simulator
 
-            return RigidTransform()
+    scan = captures(Simulator(seq, ctx), seq, ctx, 0.0, 1.0)  # a fresh sequencer scans
+    assert {stage for _, stage, _ in scan} == {Stage.SCAN}
+    asked = [t for t, _, c in scan if c]  # one sample in two: every 0.2 s
+    assert len(asked) == 5 and np.allclose(np.diff(asked), 0.2, atol=0.021)
+    seq, ctx = sequencer(detector=StubDetector(np.array([2.3, 2.7, 0.63])))
+    sim = searching(seq, ctx, 2.0, 2.5 - 0.55, math.pi / 2)  # at the desk's look pose
+    seen = captures(sim, seq, ctx, 0.0, 1.5)
+    look = [t for t, stage, _ in seen if stage == Stage.LOOK]
+    asked = [t for t, stage, c in seen if stage == Stage.LOOK and c]  # every sample: 0.1 s
+    assert len(asked) >= round((look[-1] - look[0]) / 0.1) - 1
+    assert np.allclose(np.diff(asked), 0.1, atol=0.021)
+    assert Stage.APPROACH in {stage for _, stage, _ in seen}
+    assert not any(c for _, stage, c in seen if stage == Stage.APPROACH)
 
-    book = Instruction("book", "desk", "study", "coffee_table", "living_room")
-    seq = ObjectSearchSequencer(book, get_task(6).spec.scene, Found(), 0.03,
-                                SearchAgentParams.load(), NavigationParams.load(), Kinematics(),
-                                "", (4, 4))
-    ctx = seq.CreateDefaultContext()
+
+def _body(x: float, y: float, yaw: float) -> np.ndarray:
+    from pr2_drake.ports import BODY_STATE_SIZE
+
     bs = np.zeros(BODY_STATE_SIZE)
-    yaw = math.pi / 2  # at the desk's look pose, facing it
-    bs[:7] = [2.0, 2.5 - 0.55, 0.57, math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
-    seq.GetInputPort("body_state").FixValue(ctx, bs)
-    seq.GetInputPort("joint_state").FixValue(ctx, np.zeros(JOINT_STATE_SIZE))
-    seq.GetInputPort("pick_state").FixValue(ctx, PickState())
-    seq.GetInputPort("walker_status").FixValue(ctx, np.array([1.0, 0, 0, 0, 0, 0]))
-    seq.GetInputPort("rgbd").FixValue(ctx, RgbdFrame(np.zeros((4, 4, 3), np.uint8),
-                                                     np.ones((4, 4), np.float32)))
-    port = seq.GetOutputPort("camera_capture")
-    assert seq.memory(ctx).stage == Stage.NAVIGATE and port.Eval(ctx) is False
-    sim = Simulator(seq, ctx)
-    seen = {}
-    t = 0.0
-    while t < 1.0:
-        t += 0.02
-        sim.AdvanceTo(t)
-        seen.setdefault(seq.memory(ctx).stage, set()).add(port.Eval(ctx))
-    assert seen[Stage.LOOK] == {True}
-    assert Stage.APPROACH in seen and all(v == {False} for s, v in seen.items()
-                                          if s != Stage.LOOK)
+    bs[:7] = [x, y, 0.57, math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
+    return bs
 
 
-def test_task6_agent_renders_only_while_it_looks():
-    """Seed 0 from before the desk (as the closed-loop pick test): the camera renders at the
-    initialization and at the samples in LOOK up to the detection, never after it."""
+def test_task6_agent_renders_only_while_it_looks(tmp_path):
+    """Seed 0 from before the desk (as the closed-loop pick test, no scan but its first
+    frame): the camera renders at the initialization and at the samples in LOOK up to the
+    detection, never after it."""
     from tests._search_sim import desk_episode
     from pr2_drake.agents.search.memory import Stage
 
-    ep, agent = desk_episode(3.0)
+    params = tmp_path / "search.yaml"
+    params.write_text("scan_turn_deg: 0.0\n")
+    ep, agent = desk_episode(3.0, str(params))
     seq = agent.GetSubsystemByName("sequencer")
     seq_context = seq.GetMyContextFromRoot(ep.context)
     renders = []

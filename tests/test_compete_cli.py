@@ -82,7 +82,7 @@ def test_leaderboard_ranks_by_total_then_completion_time(tmp_path):
     ranks = [line.split("|")[2].strip() for line in text.splitlines() if line.startswith("| ")
              and line.split("|")[1].strip().isdigit()]
     assert ranks == ["fast", "slow", "half"]
-    assert "| 1 | fast | 25.0 | 15.0 (20.0 s) | 10.0 (30.0 s) |" in text
+    assert "| 1 | fast | none | 25.0 | 15.0 (20.0 s) | 10.0 (30.0 s) |" in text
     assert (tmp_path / "plots" / "category_points.png").stat().st_size > 0
     assert "fast" in (tmp_path / "leaderboard.html").read_text()
 

@@ -1,8 +1,8 @@
 """Task-6 reference agent: the sequencer's stage logic on synthetic inputs (a stub detector,
-fixed robot states), the search order and table sides, and an unreadable sentence ending the
-episode with the parser's message; one closed-loop pick (seed 0, started at the desk's look
-pose: look, find the book, step in, reach, pick: 12 s simulated; the whole episode is measured
-with ``pr2-drake eval --task 6``)."""
+fixed robot states, a map of the whole house as if seen), the search order and table sides,
+and an unreadable sentence ending the episode with the parser's message; one closed-loop pick
+(seed 0, started before the desk: a short scan, look, find the book, step in, reach, pick;
+the whole episode is measured with ``pr2-drake eval --task 6``)."""
 
 import math
 
@@ -17,19 +17,22 @@ from pr2_drake.agents.search.tables import (
     best_side,
     in_heading,
     out_from_under,
-    search_order,
-    tables_from_scene,
+    surface_order,
 )
 from pr2_drake.agents.search.instruction import Instruction, InstructionError
-from pr2_drake.agents.search.navigation import NavigationParams, OccupancyGrid
-from pr2_drake.agents.search.perception import Detection
+from pr2_drake.agents.search.mapping import MappingParams
+from pr2_drake.agents.search.navigation import NavigationParams
+from pr2_drake.agents.search.perception import CameraIntrinsics, Detection
 from pr2_drake.grasp import PickState
 from pr2_drake.ports import BODY_STATE_SIZE, JOINT_STATE_SIZE
 from pr2_drake.tasks import get_task
+from tests._search_sim import scene_map
 
 SCENE = get_task(6).spec.scene
-TABLES = tables_from_scene(SCENE)
-GRID = OccupancyGrid.from_scene(SCENE)
+TABLES = {k: Table(k, np.array(f["center"], float), np.array(f["size"], float),
+                   float(f["height"])) for k, f in SCENE["furniture"].items()}
+MAP = scene_map(SCENE)
+GRID = MAP.grid()
 BOOK = Instruction("book", "desk", "study", "coffee_table", "living_room")
 
 
@@ -62,10 +65,12 @@ def body_state(x: float, y: float, yaw: float) -> np.ndarray:
     return b
 
 
-def sequencer(instruction=BOOK, detector=None, error=""):
-    seq = ObjectSearchSequencer(instruction, SCENE, detector or StubDetector(), 0.03,
-                                SearchAgentParams.load(), NavigationParams.load(),
-                                StubKinematics(), error, (4, 4))
+def sequencer(instruction=BOOK, detector=None, error="", expected_height=0.60):
+    seq = ObjectSearchSequencer(instruction, TABLES["coffee_table"], detector or StubDetector(),
+                                0.03, CameraIntrinsics.from_fov(4, 4, 60.0), 0.1,
+                                ((-4.0, -4.0), (4.0, 4.0)), SearchAgentParams.load(),
+                                NavigationParams.load(), StubKinematics(), error,
+                                expected_height, MappingParams.load())
     ctx = seq.CreateDefaultContext()
     seq.GetInputPort("joint_state").FixValue(ctx, np.zeros(JOINT_STATE_SIZE))
     seq.GetInputPort("pick_state").FixValue(ctx, PickState())
@@ -77,15 +82,43 @@ def sequencer(instruction=BOOK, detector=None, error=""):
     return seq, ctx
 
 
-def test_search_order_starts_at_the_named_place_and_never_searches_the_destination():
-    home = {k: v["table"] for k, v in SCENE["objects"].items()}
-    room = {k: v["room"] for k, v in SCENE["furniture"].items()}
-    order = search_order(BOOK, home, room, TABLES, "coffee_table", np.array([2.0, 1.0]))
-    assert order[0] == "desk" and "coffee_table" not in order and len(order) == 3
-    vague = Instruction("cup", None, None, "coffee_table", "living_room")
-    order = search_order(vague, home, room, TABLES, "coffee_table", np.array([-2.0, 2.0]))
-    assert order[0] == "kitchen_table"  # the cup's home table, from the public scene
-    assert order[1] == "play_table"  # then the nearest
+def searching(seq, ctx, x: float, y: float, yaw: float, world=MAP):
+    """The robot at (x, y, yaw), the scan done with ``world`` in the map: on to a top."""
+    seq.GetInputPort("body_state").FixValue(ctx, body_state(x, y, yaw))
+    m = seq.mutable_memory(ctx)
+    m.map, m.frame_time = world, 0.0  # (the stub frame is not mapped)
+    seq._next_place(m, np.array([x, y, 0.57]), 0.0)
+    return Simulator(seq, ctx)
+
+
+def test_search_order_hinted_then_named_height_then_nearest():
+    p = SearchAgentParams.load()
+    tops = [TABLES[k] for k in ("kitchen_table", "play_table", "desk")]
+    p0 = np.array([2.0, -1.0])  # in the kitchen
+    order = [t.name for t in surface_order(tops, [], None, p0, p)]
+    assert order == ["kitchen_table", "desk", "play_table"]  # nearest first
+    assert surface_order(tops, [], 0.50, p0, p)[0].name == "play_table"  # the named height
+    seen = [np.array([1.9, 2.8, 0.64])]  # the target seen on the desk while scanning
+    assert surface_order(tops, seen, 0.50, p0, p)[0].name == "desk"
+
+
+def test_the_map_tops_are_the_tables_and_the_destination_is_never_searched():
+    seq, ctx = sequencer()
+    searching(seq, ctx, 2.0, 1.0, math.pi / 2)
+    m = seq.memory(ctx)
+
+    def top_of(name):
+        t = TABLES[name]
+        return next((k for k, s in m.surfaces.items() if s.contains(t.center)
+                     and abs(s.height - t.height) < 0.01), None)
+
+    assert top_of("coffee_table") is None  # the destination (the decor's seats are tops too)
+    assert None not in [top_of(k) for k in ("kitchen_table", "play_table", "desk")]
+    assert m.place == top_of("desk")  # the sentence's desk: its height first
+    top = m.surfaces[m.place]
+    assert np.allclose(top.center, TABLES["desk"].center, atol=0.03)
+    assert np.allclose(top.size, TABLES["desk"].size, atol=0.06)
+    assert top.height == pytest.approx(TABLES["desk"].height)
 
 
 def test_tables_are_approached_from_their_open_long_side():
@@ -101,10 +134,10 @@ def test_stages_walk_look_and_approach_the_detected_object():
     det = StubDetector(p_WO)
     seq, ctx = sequencer(detector=det)
     # At the desk's look pose, facing it: NAVIGATE ends at once, LOOK takes a frame.
-    seq.GetInputPort("body_state").FixValue(ctx, body_state(2.0, 2.5 - 0.55, math.pi / 2))
-    sim = Simulator(seq, ctx)
+    sim = searching(seq, ctx, 2.0, 2.5 - 0.55, math.pi / 2)
     sim.AdvanceTo(0.05)
-    assert seq.memory(ctx).stage == Stage.LOOK and seq.memory(ctx).place == "desk"
+    m = seq.memory(ctx)
+    assert m.stage == Stage.LOOK and m.surfaces[m.place].contains(TABLES["desk"].center)
     sim.AdvanceTo(1.0)
     assert det.calls == 1 and seq.memory(ctx).stage == Stage.APPROACH
     assert np.allclose(seq.memory(ctx).p_WO, p_WO)
@@ -121,8 +154,8 @@ def test_stages_walk_look_and_approach_the_detected_object():
 def test_nothing_found_moves_on_to_the_next_table():
     det = StubDetector(None)
     seq, ctx = sequencer(detector=det)
-    seq.GetInputPort("body_state").FixValue(ctx, body_state(2.0, 1.95, math.pi / 2))
-    sim = Simulator(seq, ctx)
+    sim = searching(seq, ctx, 2.0, 1.95, math.pi / 2)
+    desk = seq.memory(ctx).place
     sim.AdvanceTo(1.0)
     assert seq.memory(ctx).stage == Stage.LOOK
     cmd = seq.GetOutputPort("velocity_command").Eval(ctx)
@@ -135,8 +168,11 @@ def test_nothing_found_moves_on_to_the_next_table():
     m.t_still = -1.0
     seq.GetInputPort("body_state").FixValue(ctx, body_state(2.0, 1.95, math.pi / 2 - 0.52))
     sim.AdvanceTo(3.0)
-    assert seq.memory(ctx).place != "desk" and seq.memory(ctx).stage == Stage.NAVIGATE  # on to the next table
-    assert seq.memory(ctx).path is not None and len(seq.memory(ctx).path) >= 2
+    m = seq.memory(ctx)
+    assert m.stage == Stage.NAVIGATE and not m.surfaces[m.place].contains(TABLES["desk"].center)
+    assert m.path is not None and len(m.path) >= 2  # on to the next table
+    assert len(m.searched) == 1 and TABLES["desk"].contains(m.searched[0])  # never again
+    assert desk not in m.surfaces or not m.surfaces[desk].contains(TABLES["desk"].center)
 
 
 def test_unreadable_sentence_ends_with_the_parsers_message():
@@ -156,7 +192,9 @@ def test_agent_builds_with_a_bad_sentence_and_refuses_other_priors():
         sdf = resolve_user_path(o["model"], name)
         models[name] = {"sdf": str(sdf), "mesh": str(sdf.with_suffix(".obj")),
                         "label": o["label"]}
-    agent = ObjectSearchAgent({"object_models": models, "instruction": "fetch the banana"})
+    agent = ObjectSearchAgent({"object_models": models, "instruction": "fetch the banana",
+                               "coffee_table_center": [-2.0, -2.0, 0.45],
+                               "coffee_table_size": [1.0, 0.6]})
     seq = agent.GetSubsystemByName("sequencer")
     assert seq.instruction is None and "banana" in seq.error
     assert {agent.get_input_port(i).get_name() for i in range(agent.num_input_ports())} == {
@@ -165,15 +203,19 @@ def test_agent_builds_with_a_bad_sentence_and_refuses_other_priors():
         ObjectSearchAgent({"valve_center": [0, 0, 1]})
 
 
-def test_closed_loop_pick_on_seed_0_from_the_desk():
-    """Seed 0: the book on the desk. The robot starts before the desk (start override), so
-    the walk from the study's door is skipped; everything else is the full agent."""
+def test_closed_loop_pick_on_seed_0_from_the_desk(tmp_path):
+    """Seed 0: the book on the desk. The robot starts before the desk (start override) and
+    scans no more than its first frame (a parameter file), so the walk from the study's door
+    and the turn on the spot are skipped; everything else is the full agent: the desk found
+    in the map of that frame."""
     from tests._search_sim import desk_episode
 
-    ep, agent = desk_episode(12.5)
+    params = tmp_path / "search.yaml"
+    params.write_text("scan_turn_deg: 0.0\n")
+    ep, agent = desk_episode(16.0, str(params))
     assert ep.testbed.scene.data["target"] == "book"
     ep.initialize()
-    status = ep.advance_to(12.5)
+    status = ep.advance_to(16.0)
     items = [i.item for i in status.items]
     seq = agent.GetSubsystemByName("sequencer")
     m = seq.memory(seq.GetMyContextFromRoot(ep.context))
@@ -185,8 +227,7 @@ def test_closed_loop_pick_on_seed_0_from_the_desk():
 def test_object_on_the_far_half_is_picked_from_the_other_side():
     det = StubDetector(np.array([2.0, 3.04, 0.63]))  # desk's far (north) edge
     seq, ctx = sequencer(detector=det)
-    seq.GetInputPort("body_state").FixValue(ctx, body_state(2.0, 1.95, math.pi / 2))
-    sim = Simulator(seq, ctx)
+    sim = searching(seq, ctx, 2.0, 1.95, math.pi / 2)
     sim.AdvanceTo(1.0)
     assert seq.memory(ctx).stage == Stage.NAVIGATE and seq.memory(ctx).nav_then == Stage.APPROACH
     x, y, yaw = seq.memory(ctx).pick_goal
@@ -196,8 +237,7 @@ def test_object_on_the_far_half_is_picked_from_the_other_side():
 
 def test_approach_stopped_short_by_the_table_settles_after_a_timeout():
     seq, ctx = sequencer(detector=StubDetector(np.array([2.3, 2.7, 0.63])))
-    seq.GetInputPort("body_state").FixValue(ctx, body_state(2.0, 1.95, math.pi / 2))
-    sim = Simulator(seq, ctx)
+    sim = searching(seq, ctx, 2.0, 1.95, math.pi / 2)
     sim.AdvanceTo(1.0)
     assert seq.memory(ctx).stage == Stage.APPROACH
     x, y, yaw = seq.memory(ctx).goal
@@ -221,7 +261,7 @@ def test_object_models_load_from_any_working_folder(tmp_path, monkeypatch):
 
 def test_the_object_is_placed_with_the_arm_as_at_the_pick():
     seq, ctx = sequencer()
-    tab = seq.tables["coffee_table"]
+    tab = seq.destination
     m = seq.mutable_memory(ctx)
     m.side = np.array([0.0, 1.0])  # approached from its +y side (the sofa is at -y)
     m.r_pick = np.array([0.35, -0.18, 0.05])  # hand at the pick, heading frame
@@ -257,15 +297,14 @@ def test_an_object_out_of_reach_from_the_look_side_is_picked_from_the_nearest_fr
     # reach from the south, so the robot walks round to the nearest side with floor.
     p_WO = np.array([1.5, 2.95, 0.63])
     seq, ctx = sequencer(detector=StubDetector(p_WO))
-    seq.GetInputPort("body_state").FixValue(ctx, body_state(2.0, 1.95, math.pi / 2))
-    Simulator(seq, ctx).AdvanceTo(1.0)
+    searching(seq, ctx, 2.0, 1.95, math.pi / 2).AdvanceTo(1.0)
     assert seq.memory(ctx).stage == Stage.NAVIGATE and seq.memory(ctx).nav_then == Stage.APPROACH
-    tab = seq.tables["desk"]
+    tab = seq.memory(ctx).surfaces[seq.memory(ctx).place]
     depth = tab.side_frame(seq.memory(ctx).side)[0] - float((p_WO[:2] - tab.center) @ seq.memory(ctx).side)
     assert depth <= 0.15 + 1e-9  # the west end (0.10) or the north side (0.15), not 0.45
     x, y, yaw = seq.memory(ctx).pick_goal
     assert np.allclose([math.cos(yaw), math.sin(yaw)], -seq.memory(ctx).side)  # facing the table
-    grid = seq.grid.inflated(seq.nav.robot_radius)
+    grid = GRID.inflated(seq.nav.robot_radius)
     assert grid.free(seq.memory(ctx).path[-1])
 
 
@@ -298,3 +337,25 @@ def test_a_hand_hanging_under_a_table_edge_backs_out_before_it_rises():
     assert not tab.contains(back, 0.07) and back[1] > -0.3 - 0.07 - 0.02
     assert out_from_under(np.array([0.1, -0.45, 0.50]), facing, tab, margin) is None  # clear
     assert out_from_under(np.array([0.1, -0.27, 0.65]), facing, tab, margin) is None  # above
+
+
+def test_a_pick_that_misses_from_one_side_walks_round_to_the_next_free_side():
+    # The hand never closes on the object (no attachment): after ``pick_tries`` the robot
+    # lifts the hand, steps back and walks round to another side with floor on the map.
+    p_WO = np.array([2.3, 2.7, 0.63])
+    seq, ctx = sequencer(detector=StubDetector(p_WO))
+    sim = searching(seq, ctx, 2.0, 1.95, math.pi / 2)
+    sim.AdvanceTo(1.0)
+    m = seq.mutable_memory(ctx)
+    look = np.array(m.side)
+    assert np.allclose(look, [0, -1])  # reachable from the look side: no walk round yet
+    m.stage, m.t_stage = Stage.PICK, 1.0
+    sim.AdvanceTo(1.0 + seq.p.pick_tries * seq.p.pick_timeout + 0.1)
+    m = seq.memory(ctx)
+    assert m.stage == Stage.RETRACT and m.retry_side is not None
+    assert not np.allclose(m.retry_side, look) and np.allclose(m.sides_tried[0], look)
+    sim.AdvanceTo(sim.get_context().get_time() + seq.p.back_time + 2 * seq.p.reach_time + 1.0)
+    m = seq.memory(ctx)
+    assert m.stage == Stage.NAVIGATE and m.nav_then == Stage.APPROACH
+    assert not np.allclose(m.side, look) and m.retry_side is None
+    assert GRID.inflated(seq.nav.robot_radius).free(m.path[-1])

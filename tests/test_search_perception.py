@@ -89,3 +89,15 @@ def test_a_tall_object_against_a_wall_is_found_by_the_plane_around_its_foot():
     assert hit is not None and np.linalg.norm(hit.p_WO - p_WO) < 0.05, hit
     outline_only = dataclasses.replace(DetectorParams.load(), foot_height=0.0)
     assert ObjectDetector(models, K, outline_only).find(rgb, depth, X_WC, "bottle") is None
+
+
+def test_support_planes_ignore_pixels_without_depth():
+    # A floor patch seen with one pixel out of range (depth inf): the floor is found, no error.
+    from pr2_drake.agents.search.perception import DetectorParams, ObjectDetector
+
+    det = ObjectDetector.__new__(ObjectDetector)
+    det.params = DetectorParams.load()
+    X, Y = np.meshgrid(np.linspace(0.0, 1.0, 80), np.linspace(0.0, 1.0, 80))
+    pts = np.dstack([X, Y, np.zeros_like(X)])
+    pts[10, 10] = np.inf
+    assert det._planes(pts, np.ones((80, 80), bool)) == [0.0]

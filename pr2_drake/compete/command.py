@@ -70,27 +70,30 @@ def add_compete_args(p: argparse.ArgumentParser) -> None:
                    help="with --backend ray: a running cluster (e.g. ray://head:10001, auto); "
                         "default: a local Ray with --jobs CPUs")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="domain randomisation for every episode, e.g. --set "
-                        "randomize.enabled=true (repeatable; randomize.* keys only)")
+                   help="a scenario switch for every episode: --set scene.variation=true, "
+                        "--set randomize.enabled=true (repeatable; scene.* and randomize.* "
+                        "keys only; the leaderboard states them)")
 
 
-def randomize_from_sets(sets: list[str]) -> Any:
-    """compete's ``--set`` overrides -> the episodes' ``RandomizeSettings`` (None: off).
+SWITCH_KEYS = ("scene.", "randomize.")  # the scenario sections compete's --set may change
+
+
+def scenario_sets(sets: list[str]) -> tuple[str, ...]:
+    """compete's ``--set`` overrides, checked: every key in :data:`SWITCH_KEYS` and the
+    scenario they make valid (the submissions and the flags set the rest of each episode).
 
     Raises:
-        ValueError: a key outside ``randomize.``, or one the scenario refuses (named).
+        ValueError: a key outside them, or a value the scenario refuses (named).
     """
-    for item in sets:
-        if not item.split("=", 1)[0].strip().startswith("randomize."):
-            raise ValueError(f"--set {item}: compete takes randomize.* keys only (the "
-                             f"submissions and the flags set the rest of each episode)")
-    if not sets:
-        return None
     from pr2_drake.scenario import load_scenario
 
-    scenario = load_scenario(None, overrides=sets)
-    scenario.validate()
-    return scenario.randomize if scenario.randomize.enabled else None
+    for item in sets:
+        if not item.split("=", 1)[0].strip().startswith(SWITCH_KEYS):
+            keys = " and ".join(f"{k}*" for k in SWITCH_KEYS)
+            raise ValueError(f"--set {item}: compete takes {keys} keys only (the submissions "
+                             f"and the flags set the rest of each episode)")
+    load_scenario(None, overrides=sets).validate()
+    return tuple(sets)
 
 
 def cmd_compete(args, seeds: list[int]) -> int:
@@ -98,10 +101,10 @@ def cmd_compete(args, seeds: list[int]) -> int:
 
     tasks = parse_tasks(args.tasks)
     limits = limits_from_args(args)
-    randomize = randomize_from_sets(args.set)
+    sets = scenario_sets(args.set)
     rows = run_competition(args.submissions, tasks, seeds, args.out, jobs=args.jobs,
                            seconds=args.seconds, limits=limits, backend=args.backend,
-                           ray_address=args.ray_address, randomize=randomize)
+                           ray_address=args.ray_address, sets=sets)
     print(f"{len(rows)} episodes in {args.out}/results.json and results.csv; "
           f"`pr2-drake leaderboard {args.out}` ranks them")
     return 0

@@ -1,7 +1,9 @@
 """``pr2-drake leaderboard DIR``: rank the submissions of a ``compete`` results folder.
 
 Per submission and task: the mean score over the seeds and the mean completion time (the
-simulated time of the episodes that earned full marks). Rank by total mean score, ties by the
+simulated time of the episodes that earned full marks); the scenario switches the episodes ran
+with (``scene.variation``: scenes drawn from the seeds, ``randomize``: randomised physics;
+``none``: the tasks as given) in a column of their own. Rank by total mean score, ties by the
 total completion time (tasks never completed count as the task's time limit). Writes
 ``DIR/leaderboard.md`` and ``DIR/leaderboard.html`` and, with matplotlib (``pip install
 'pr2-drake[compete]'``), the figures of the paper in ``DIR/plots``:
@@ -44,8 +46,9 @@ def load_rows(folder: str | Path) -> list[dict[str, Any]]:
 
 
 def standings(rows: list[dict[str, Any]]) -> tuple[list[int], list[dict[str, Any]]]:
-    """(tasks, one entry per submission, ranked): {submission, total, time, tasks: {task:
-    {score, max_score, time, episodes}}}."""
+    """(tasks, one entry per submission, ranked): {submission, scenario, total, time, tasks:
+    {task: {score, max_score, time, episodes}}}; ``scenario`` names the switches its episodes
+    ran with (:func:`scenario_label`)."""
     from pr2_drake.tasks import get_task
 
     tasks = sorted({int(r["task"]) for r in rows})
@@ -55,7 +58,8 @@ def standings(rows: list[dict[str, Any]]) -> tuple[list[int], list[dict[str, Any
     limits = {t: float(get_task(t).spec.time_limit) for t in tasks}
     table = []
     for sub in sorted({r["submission"] for r in rows}):
-        entry = {"submission": sub, "tasks": {}, "total": 0.0, "time": 0.0}
+        entry = {"submission": sub, "tasks": {}, "total": 0.0, "time": 0.0,
+                 "scenario": scenario_label(r for r in rows if r["submission"] == sub)}
         for t in tasks:
             eps = by.get((sub, t), [])
             if not eps:
@@ -75,19 +79,30 @@ def standings(rows: list[dict[str, Any]]) -> tuple[list[int], list[dict[str, Any
     return tasks, table
 
 
+def scenario_label(rows) -> str:
+    """The scenario switches of these rows (``scenario`` in each), ``+``-joined; ``none`` when
+    off; every set seen, ``, ``-joined, when they differ."""
+    seen = sorted({"+".join(r.get("scenario", [])) or "none" for r in rows})
+    return ", ".join(seen) or "none"
+
+
 def markdown(tasks: list[int], table: list[dict[str, Any]]) -> str:
-    head = "| rank | submission | total | " + " | ".join(f"task {t}" for t in tasks) + " |"
-    rule = "|---:|---|---:|" + "---:|" * len(tasks)
+    head = ("| rank | submission | scenario | total | " + " | ".join(f"task {t}" for t in tasks)
+            + " |")
+    rule = "|---:|---|---|---:|" + "---:|" * len(tasks)
     lines = ["# Leaderboard", "",
              "Mean score over the seeds per task (mean completion time of full-mark episodes, "
-             "simulated s). Rank by total score, ties by total completion time.", "", head, rule]
+             "simulated s). Rank by total score, ties by total completion time. Scenario: the "
+             "switches the episodes ran with (scene.variation, randomize; none: the tasks as "
+             "given).", "", head, rule]
     for i, e in enumerate(table, 1):
         cells = []
         for t in tasks:
             c = e["tasks"][t]
             time = f" ({c['time']:.1f} s)" if c["time"] is not None else ""
             cells.append(f"{c['score']:.1f}{time}" if c["episodes"] else "-")
-        lines.append(f"| {i} | {e['submission']} | {e['total']:.1f} | " + " | ".join(cells)
+        lines.append(f"| {i} | {e['submission']} | {e['scenario']} | {e['total']:.1f} | "
+                     + " | ".join(cells)
                      + " |")
     return "\n".join(lines) + "\n"
 
@@ -100,6 +115,7 @@ def html_page(tasks: list[int], table: list[dict[str, Any]], plots: list[str]) -
                                        if c["time"] is not None else "") + "</td>"
             if c["episodes"] else "<td>-</td>" for c in (e["tasks"][t] for t in tasks))
         rows.append(f"<tr><td>{i}</td><td>{html.escape(e['submission'])}</td>"
+                    f"<td>{html.escape(e['scenario'])}</td>"
                     f"<td><b>{e['total']:.1f}</b></td>{cells}</tr>")
     head = "".join(f"<th>task {t}</th>" for t in tasks)
     images = "".join(f'<p><img src="{p}" style="max-width:100%"></p>' for p in plots)
@@ -107,8 +123,9 @@ def html_page(tasks: list[int], table: list[dict[str, Any]], plots: list[str]) -
             "<style>body{font-family:sans-serif} td,th{padding:4px 10px;text-align:right}"
             "</style></head><body><h1>Leaderboard</h1><p>Mean score over the seeds per task "
             "(mean completion time of full-mark episodes, simulated s). Rank by total score, "
-            "ties by total completion time.</p><table><tr><th>rank</th><th>submission</th>"
-            f"<th>total</th>{head}</tr>{''.join(rows)}</table>{images}</body></html>\n")
+            "ties by total completion time. Scenario: the switches the episodes ran with "
+            "(scene.variation, randomize; none: the tasks as given).</p><table><tr>"
+            f"<th>rank</th><th>submission</th><th>scenario</th><th>total</th>{head}</tr>{''.join(rows)}</table>{images}</body></html>\n")
 
 
 def _grid(plt, n: int):

@@ -13,10 +13,12 @@ link). Results go to ``OUT/episodes.jsonl`` as each episode ends, each row with 
 again; a row without a valid MAC is), then ``OUT/results.json`` and ``OUT/results.csv`` (one
 row per episode). Only the harness writes them, from outside every sandbox.
 
-Domain randomisation (``randomize``: the scenario's section, :mod:`pr2_drake.randomize`; the
-CLI's ``--set randomize.enabled=true``) is the same for every submission: each episode's
-physics is drawn from its seed, reported in its row as ``physics``, and never sent to the
-sandbox.
+Scenario switches (``sets``, the CLI's ``--set scene.variation=true`` and ``--set
+randomize.enabled=true``) are the same for every submission and episode; each row names the
+switches on as ``scenario`` (:meth:`pr2_drake.scenario.Scenario.switches`), and a results
+folder holds the episodes of one set of switches (resuming with others is refused). With
+domain randomisation (``randomize``, :mod:`pr2_drake.randomize`) each episode's physics is
+drawn from its seed, reported in its row as ``physics``, and never sent to the sandbox.
 
 Backends (``jobs`` episodes at once on either): ``local`` runs episodes in this process or a
 pool of spawned processes; ``ray`` sends each episode as a Ray task (:func:`run_job`, the same
@@ -43,8 +45,8 @@ from pr2_drake.compete.limits import SandboxLimits
 from pr2_drake.compete.sandbox import isolation_note
 from pr2_drake.compete.submission import read_submission_yaml
 
-CSV_FIELDS = ("submission", "task", "seed", "score", "max_score", "termination", "items",
-              "sim_time", "wall_time", "agent_compute_mean_ms", "agent_compute_max_ms",
+CSV_FIELDS = ("submission", "task", "seed", "scenario", "score", "max_score", "termination",
+              "items", "sim_time", "wall_time", "agent_compute_mean_ms", "agent_compute_max_ms",
               "step_time_mean_ms", "ipc_overhead_mean_us", "steps", "sandbox", "message")
 
 
@@ -143,7 +145,7 @@ class Job:
     seconds: float | None
     limits: SandboxLimits
     hide: tuple[str, ...] = ()
-    randomize: Any = None  # a RandomizeSettings, or None: the scenario's default (off)
+    sets: tuple[str, ...] = ()  # scenario overrides of every episode (scene.*, randomize.*)
 
     @property
     def key(self) -> tuple[str, int, int]:
@@ -153,13 +155,12 @@ class Job:
 def run_job(job: Job) -> dict[str, Any]:
     """One sandboxed episode -> its results row (the report plus ``submission``)."""
     from pr2_drake.compete.proxy import run_sandboxed_episode
-    from pr2_drake.scenario import Scenario
+    from pr2_drake.scenario import Scenario, load_scenario
 
     spec = job.submission.agent_for(job.task)
-    scenario = Scenario(task=job.task, seed=job.seed, agent=spec, seconds=job.seconds,
-                        agent_params=dict(job.submission.agent_params))
-    if job.randomize is not None:
-        scenario.randomize = job.randomize
+    scenario = load_scenario(None, overrides=job.sets, defaults=Scenario(
+        task=job.task, seed=job.seed, agent=spec, seconds=job.seconds,
+        agent_params=dict(job.submission.agent_params)))
     start = time.perf_counter()
     try:
         report = run_sandboxed_episode(scenario, submission=job.submission.folder,
@@ -174,6 +175,8 @@ def run_job(job: Job) -> dict[str, Any]:
                   "termination": "agent_error", "items": [], "sim_time": 0.0,
                   "wall_time": round(time.perf_counter() - start, 3),
                   "message": " ".join(str(e).split())}
+        if scenario.switches():
+            report["scenario"] = scenario.switches()
     return {"submission": job.submission.name, **report}
 
 
@@ -185,12 +188,12 @@ def run_competition(root: str | Path, tasks: Iterable[int], seeds: Iterable[int]
                     limits: SandboxLimits | None = None,
                     progress: TextIO | None = sys.stderr, backend: str = "local",
                     ray_address: str | None = None,
-                    randomize: Any = None) -> list[dict[str, Any]]:
+                    sets: tuple[str, ...] = ()) -> list[dict[str, Any]]:
     """Run (or resume) a competition; returns all rows and writes the results files.
 
     Args:
-        randomize: the episodes' domain randomisation (a
-            :class:`pr2_drake.randomize.RandomizeSettings`; None: off).
+        sets: scenario overrides of every episode (``scene.variation=true``, ...; checked by
+            :func:`pr2_drake.compete.command.scenario_sets`).
         backend: "local" (processes here) or "ray" (Ray tasks; see the module docstring).
         ray_address: with ``backend="ray"``, a running cluster's address (None: start a local
             Ray with ``jobs`` CPUs for this run).
@@ -218,8 +221,12 @@ def run_competition(root: str | Path, tasks: Iterable[int], seeds: Iterable[int]
     log = out / "episodes.jsonl"
     key = ledger.run_key(out)
     done, rejected = ledger.read_rows(log, key)
+    from pr2_drake.scenario import load_scenario
+
+    switched = load_scenario(None, overrides=sets)
+    switches = _check_switches(done.values(), switched.switches(), out)
     hide = tuple(str(p.resolve()) for p in (Path(root), out))
-    todo = [Job(s, t, seed, seconds, limits, hide, randomize) for s in subs for t in tasks for seed in seeds
+    todo = [Job(s, t, seed, seconds, limits, hide, tuple(sets)) for s in subs for t in tasks for seed in seeds
             if s.agent_for(t) is not None]
     todo = [j for j in todo if j.key not in done]
     say = (lambda text: print(text, file=progress, flush=True)) if progress else (lambda _: 0)
@@ -229,6 +236,7 @@ def run_competition(root: str | Path, tasks: Iterable[int], seeds: Iterable[int]
             f"this harness) ignored: those episodes run again")
     say(f"{len(subs)} submissions, tasks {list(tasks)}, seeds {list(seeds)}: "
         f"{len(done)} episodes done before, {len(todo)} to run with {jobs} job(s)"
+        + (f", scenario {'+'.join(switches)}" if switches else "")
         + (f" on Ray ({ray_address or 'local'})" if backend == "ray" else ""))
     start = time.perf_counter()
     results = (_ray_results(todo, jobs, ray_address) if backend == "ray"
@@ -246,8 +254,22 @@ def run_competition(root: str | Path, tasks: Iterable[int], seeds: Iterable[int]
                                    "seeds": list(seeds), "seconds": seconds,
                                    "limits": vars(limits), "isolation": note,
                                    "trust_submissions": limits.trust,
-                                   "randomize": None if randomize is None else asdict(randomize)})
+                                   "scenario": switches,
+                                   "randomize": asdict(switched.randomize)
+                                   if switched.randomize.enabled else None})
     return rows
+
+
+def _check_switches(rows, switches: list[str], out: Path) -> list[str]:
+    """``switches`` (:meth:`Scenario.switches`); ValueError when the episodes already in
+    ``out`` were run with others (one results folder, one scenario)."""
+    for r in rows:
+        if r.get("scenario", []) != switches:
+            had = "+".join(r.get("scenario", [])) or "none"
+            raise ValueError(f"--out {out}: holds episodes run with scenario switches {had}, "
+                             f"this run has {'+'.join(switches) or 'none'}: give another "
+                             f"folder")
+    return switches
 
 
 def _results(todo: list[Job], jobs: int):
@@ -307,6 +329,7 @@ def csv_row(r: dict[str, Any]) -> dict[str, Any]:
 
     return {
         "submission": r["submission"], "task": r["task"], "seed": r["seed"],
+        "scenario": "+".join(r.get("scenario", [])),
         "score": r["score"], "max_score": r["max_score"], "termination": r["termination"],
         "items": ";".join(f"{e['item']}@{e['time']:.2f}" for e in r.get("items", [])),
         "sim_time": r.get("sim_time"), "wall_time": r.get("wall_time"),

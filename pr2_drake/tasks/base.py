@@ -8,7 +8,7 @@ with a scene builder and a :class:`Referee` subclass, named by a row of the regi
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -28,6 +28,9 @@ from pr2_drake.scene import Scene, StartPose
 TERMINATIONS = ("completed", "fell", "left_region", "timeout", "diverged", "invalid_action",
                 "agent_error", "agent_timeout", "agent_memory", "agent_exit")
 FALL_HEIGHT = 0.35  # default: fallen when the base is less than this above the ground [m]
+# The stream of scene variation: its draws never touch the episode's own rng (start pose,
+# objects), so a varied scene keeps the start pose the same seed gives the task's own scene.
+VARIATION_STREAM = 0x5CE4E
 
 
 @dataclass
@@ -282,7 +285,12 @@ def _inside(p: np.ndarray, box: dict[str, list[float]]) -> bool:
 class TaskDefinition:
     """A registered task: its spec plus the code that builds its scene and referee.
 
-    Subclasses implement :meth:`build_scene` and :meth:`make_referee`.
+    Subclasses implement :meth:`build_scene` and :meth:`make_referee`, and may implement
+    :meth:`vary_scene` (scene variation).
+
+    Attributes:
+        variation: None for the task's own scene; for a varied one (:meth:`varied`), what was
+            drawn (plain data, in the report as ``variation``).
     """
 
     #: True when ``build_scene`` draws nothing from the seed's generator but the start pose
@@ -292,13 +300,31 @@ class TaskDefinition:
     #: episode bit for bit). A task whose seed places anything else leaves it False.
     SEED_DRAWS_START_ONLY = False
 
-    def __init__(self, spec: TaskSpec):
+    def __init__(self, spec: TaskSpec, variation: dict[str, Any] | None = None):
         self.spec = spec
+        self.variation = variation
+
+    def varied(self, seed: int) -> "TaskDefinition":
+        """This task on a scene drawn from ``seed`` within the ranges of its YAML's
+        ``scene.variation`` block: a new definition whose spec holds the drawn scene, so its
+        scene, priors and referee all follow it. A task without variation returns itself."""
+        rng = np.random.default_rng([VARIATION_STREAM, int(seed)])
+        scene = copy.deepcopy(self.spec.scene)
+        drawn = self.vary_scene(scene, rng)
+        if drawn is None:
+            return self
+        return type(self)(replace(self.spec, scene=scene), variation=drawn)
+
+    def vary_scene(self, scene: dict[str, Any], rng: np.random.Generator) -> dict | None:
+        """Rewrite ``scene`` (a copy of the spec's ``scene`` block) with values drawn from
+        ``rng``; return what was drawn (plain data), or None: this task has no variation."""
+        return None
 
     def start_of(self, seed: int) -> StartPose | None:
         """The start pose of ``seed`` when that is all the seed changes in the scene (see
-        :attr:`SEED_DRAWS_START_ONLY`), else None."""
-        if not self.SEED_DRAWS_START_ONLY:
+        :attr:`SEED_DRAWS_START_ONLY`), else None. A varied scene (:meth:`varied`) is the
+        scene of one seed only: None."""
+        if not self.SEED_DRAWS_START_ONLY or self.variation is not None:
             return None
         return self.spec.sample_start(np.random.default_rng(seed))
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.math import RigidTransform
+from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import CoulombFriction, MultibodyPlant
 
@@ -81,14 +81,17 @@ def add_table(plant: MultibodyPlant, name: str, cfg: dict, top_thickness: float,
 
 
 def add_usd_furniture(plant: MultibodyPlant, name: str, cfg: dict) -> None:
-    """Import cfg["usd"] (origin at its floor centre, z up) and weld it at cfg["center"]."""
+    """Import cfg["usd"] (origin at its floor centre, z up) and weld it at cfg["center"],
+    turned by cfg["yaw_deg"] (default 0; its ``size`` is then the turned footprint's)."""
     sdf = import_usd(resolve_user_path(cfg["usd"], f"{name} USD stage"), name=name, mass=10.0,
                      collision="box")
     parser = Parser(plant, name)
     (instance,) = parser.AddModels(str(sdf))
     body = plant.GetBodyByName(name, instance)
     cx, cy = cfg["center"]
-    plant.WeldFrames(plant.world_frame(), body.body_frame(), RigidTransform([cx, cy, 0.0]))
+    yaw = np.radians(float(cfg.get("yaw_deg", 0.0)))
+    plant.WeldFrames(plant.world_frame(), body.body_frame(),
+                     RigidTransform(RotationMatrix.MakeZRotation(yaw), [cx, cy, 0.0]))
 
 
 def add_house(plant: MultibodyPlant, scene: dict) -> dict[str, Table]:

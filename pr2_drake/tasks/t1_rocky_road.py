@@ -15,6 +15,9 @@ The episode is complete when all three are earned. Figures not in TASKS.md (road
 grid, heights 0.5-2.5 cm, tilts up to 3 deg, regions, arena) are our choices and live in the YAML.
 
 Prior: ``goal_center`` [x, y, z] (world, m).
+
+Scene variation (``scene.variation``): the road's seed drawn from the episode seed (YAML
+``scene.variation``), so every episode walks a rock field of its own with the same figures.
 """
 
 from __future__ import annotations
@@ -92,6 +95,12 @@ class Task(TaskDefinition):
             priors={"goal_center": np.array(goal)},
             data={"road": road},
         )
+
+    def vary_scene(self, scene: dict, rng: np.random.Generator) -> dict:
+        """A rock field of its own: the road's seed from ``rng``."""
+        seed = int(rng.integers(int(scene["variation"]["road_seed_max"])))
+        scene["road"]["seed"] = seed
+        return {"road_seed": seed}
 
     def make_referee(self, plant: MultibodyPlant, robot: ModelInstanceIndex,
                      scene: Scene) -> Referee:

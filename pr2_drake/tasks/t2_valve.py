@@ -17,6 +17,10 @@ turns with the robot's motion and its reaction acts on the robot.
 Rubric: base inside ``task_region`` +5; |valve angle| > ``turn_threshold_deg`` (5 deg, our
 choice) +5; |valve angle| > ``turn_goal_deg`` (45 deg) +5. The angle is the joint angle from the
 start, either direction. Priors: valve centre, dimensions, id. Feedback: the arm pick state.
+
+Scene variation (``scene.variation``): the wheel's centre height and outer diameter drawn
+uniformly from the YAML's ``scene.variation`` ranges; the pick volume grows or shrinks with the
+rim (its margin beyond the rim kept); the priors give the figures drawn.
 """
 
 from __future__ import annotations
@@ -239,6 +243,17 @@ class Task(TaskDefinition):
             data={"valve_joint": joint.index(), "valve_center": center},
             add_systems=[add_friction],
         )
+
+    def vary_scene(self, scene: dict, rng: np.random.Generator) -> dict:
+        """Centre height and diameter [m] drawn from ``rng`` within ``scene.variation``."""
+        v, var = scene["valve"], scene["variation"]
+        height = float(rng.uniform(*var["height"]))
+        diameter = float(rng.uniform(*var["diameter"]))
+        volume = scene["pick_volume"]
+        volume["radius"] = float(volume["radius"]) + 0.5 * (diameter - float(v["diameter"]))
+        v["center"] = [float(v["center"][0]), float(v["center"][1]), height]
+        v["diameter"] = diameter
+        return {"valve_height": height, "valve_diameter": diameter}
 
     def make_referee(self, plant, robot, scene) -> ValveReferee:
         return ValveReferee(self.spec, plant, robot, scene)

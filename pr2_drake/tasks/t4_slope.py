@@ -11,6 +11,9 @@ Figures not in TASKS.md (ramp run and width, plateau length, regions, the 0.4 m 
 taken from task 1's tolerance, arena) are our choices and live in the YAML.
 
 Priors: ``goal_center`` [x, y, z] (world, m) and ``slope_angle_deg``.
+
+Scene variation (``scene.variation``): the incline drawn uniformly from the YAML's
+``scene.variation.angle_deg`` range (5-9 deg); the priors give the angle and the goal drawn.
 """
 
 from __future__ import annotations
@@ -75,6 +78,13 @@ class Task(TaskDefinition):
             priors={"goal_center": np.array(goal), "slope_angle_deg": float(slope.angle_deg)},
             data={"slope": slope},
         )
+
+    def vary_scene(self, scene: dict, rng: np.random.Generator) -> dict:
+        """The incline [deg] drawn from ``rng`` within ``scene.variation.angle_deg``."""
+        lo, hi = scene["variation"]["angle_deg"]
+        angle = float(rng.uniform(lo, hi))
+        scene["slope"]["angle_deg"] = angle
+        return {"slope_angle_deg": angle}
 
     def make_referee(self, plant: MultibodyPlant, robot: ModelInstanceIndex,
                      scene: Scene) -> Referee:

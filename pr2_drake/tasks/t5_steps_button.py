@@ -24,6 +24,11 @@ Priors: ``button_center`` [x, y, z] (world, m; centre of the button's front face
 ``step_height``, ``step_depth``, ``step_width`` (m), ``step_count`` and ``step_start_x`` (m,
 where the first riser stands; the steps rise along +x, centred on y = 0). The robot has no
 camera in this task, so the staircase's position is a prior, like its dimensions.
+
+Scene variation (``scene.variation``): riser height and tread depth drawn uniformly from the
+YAML's ``scene.variation`` ranges (0.08-0.12 m, 0.32-0.48 m); the top floor keeps its far end,
+so the post and the button stand where they do (raised with the floor); the priors give the
+figures drawn.
 """
 
 from __future__ import annotations
@@ -159,6 +164,15 @@ class Task(TaskDefinition):
             },
             data={"stairs": stairs},
         )
+
+    def vary_scene(self, scene: dict, rng: np.random.Generator) -> dict:
+        """Riser height and tread depth [m] drawn from ``rng`` within ``scene.variation``."""
+        st, v = scene["steps"], scene["variation"]
+        floor_end = st["start_x"] + st["count"] * st["depth"] + st["floor_length"]
+        st["height"] = float(rng.uniform(*v["height"]))
+        st["depth"] = float(rng.uniform(*v["depth"]))
+        st["floor_length"] = floor_end - st["start_x"] - st["count"] * st["depth"]
+        return {"step_height": st["height"], "step_depth": st["depth"]}
 
     def make_referee(self, plant: MultibodyPlant, robot: ModelInstanceIndex,
                      scene: Scene) -> Referee:

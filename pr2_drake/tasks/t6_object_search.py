@@ -25,6 +25,11 @@ Rubric (our definitions of the regions, numbers in the YAML):
 
 Priors: the nine object models (paths), the coffee table centre (top centre), the sentence
 (also ``instruction()``). Feedback: the pick state; the head RGB-D camera is on (``camera``).
+
+Scene variation (``scene.variation``): a house generated from the seed
+(:mod:`pr2_drake.tasks.house_gen`: rooms, doorways, furniture, decor, which table holds each
+object); the episode's draws above then run on it, and the priors and the sentence describe it
+as they describe the task's own house.
 """
 
 from __future__ import annotations
@@ -201,6 +206,12 @@ class Task(TaskDefinition):
         target, poses, sentence, room_cfg = sample_layout(self.spec.scene, tables, rng)
         start = sample_room_start(room_cfg, self.spec.heading_noise_deg, rng)
         return target, poses, sentence, start
+
+    def vary_scene(self, scene: dict, rng: np.random.Generator) -> dict:
+        """A generated house (:func:`pr2_drake.tasks.house_gen.generate_house`)."""
+        from pr2_drake.tasks.house_gen import generate_house
+
+        return generate_house(scene, rng)
 
     def make_referee(self, plant, robot, scene) -> ObjectSearchReferee:
         return ObjectSearchReferee(self.spec, plant, robot, scene)

@@ -11,17 +11,21 @@ replaceable on its own (constructor arguments of :class:`ObjectSearchSequencer`)
   the ``instruction`` prior -> target object, source furniture/room, destination;
 - ``detector`` (:class:`~.perception.ObjectDetector`, anything with ``find(rgb, depth, X_WC,
   target)``): the head camera frame (``rgbd`` input) -> the target's position in W;
-- ``grid`` (:class:`~.navigation.OccupancyGrid` of the public scene description) and
-  :func:`~.navigation.plan_path` / :func:`~.navigation.follow_velocity`: walking between rooms.
+- the map (:class:`~.mapping.HeightMap`, made from the head camera's depth as the robot
+  goes) and :func:`~.navigation.plan_path` / :func:`~.navigation.follow_velocity`: walking
+  between rooms on what the map shows, unknown floor counted free, planned again when the
+  map shows the path blocked.
 
 Stages (``stage`` output):
 
-1. NAVIGATE to a look pose ``look_distance`` before the next likely place (the source
-   furniture; else the furniture of the source room; else the object's home table in the
-   public scene description; then the other tables, nearest first), facing its top, on the
-   side of the table with the most free floor;
+0. SCAN: turn on the spot (``scan_turn_deg``), mapping, the detector looking for the target
+   in some frames (where it is seen: a hint);
+1. NAVIGATE to a look pose ``look_distance`` before the most likely top of the map not yet
+   searched (the tops the target was seen on; then those as high as the furniture the
+   sentence names; then the nearest), facing it, on the side with the most free floor; no
+   top left: walk to a frontier of the map (free floor next to unknown) and SCAN there;
 2. LOOK: stand still, take a frame, run the detector; try the headings ``look_yaws_deg``
-   (the camera is fixed on the base: the body turns); nothing found -> next place;
+   (the camera is fixed on the base: the body turns); nothing found -> next top;
 3. APPROACH: small steps onto a pick pose ``pick_standoff`` from the table edge, in line with
    the object (the hand's shoulder nearer it), facing the table; an object more than
    ``pick_reach`` from the hand's shoulder there is picked from the side (of the four)
@@ -51,26 +55,49 @@ A sentence that cannot be read (unknown object, no destination) ends the episode
 update with the parser's message (termination ``agent_error``, the message in the report), not
 with a crash at build time. Only the public observation (``body_state``, ``joint_state``,
 ``pick_state``, ``rgbd``), the priors (``instruction``, ``object_models``,
-``coffee_table_center``, ``coffee_table_size``) and the task's public scene description
-(tasks/6_object_search.yaml: walls, furniture, camera) are used; no simulator ground truth.
-Parameters: params/agents/search.yaml. Positions in m, world frame W.
+``coffee_table_center``, ``coffee_table_size``), the arena and the camera, and what holds in
+every house of the task, its own and every generated one (``scene.variation``): the names of
+objects, furniture and rooms, the furniture's heights, the robot starting in the target's
+room (see :mod:`.explore`) are used; no layout (walls, doorways, where furniture stands,
+which table holds what) and no simulator ground truth. Parameters: params/agents/search.yaml,
+search_mapping.yaml, search_navigation.yaml. Positions in m, world frame W.
 
 The parts: :mod:`.sequencer` (ports, memory, one update), :mod:`.stages` (what each stage
-does), :mod:`.memory` (parameters, stages, memory), :mod:`.tables` (the public scene's tables
-and poses).
+does), :mod:`.explore` (scan, map, search order, replanning, exploring), :mod:`.mapping` (the
+map), :mod:`.memory` (parameters, stages, memory), :mod:`.tables` (tops and poses).
 """
 
 from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
 from pydrake.systems.framework import Diagram
 
-from pr2_drake.agents.search.instruction import InstructionError
+from pr2_drake.agents.search.instruction import Instruction, InstructionError
+from pr2_drake.agents.search.mapping import MappingParams
 from pr2_drake.agents.search.memory import SearchAgentParams
 from pr2_drake.agents.search.navigation import NavigationParams
 from pr2_drake.agents.search.sequencer import ObjectSearchSequencer
+from pr2_drake.agents.search.tables import Table
 from pr2_drake.agents.sequencer import build_sequencer_agent
+
+
+def destination_from_priors(priors: dict[str, Any]) -> Table:
+    """The coffee table of the priors: ``coffee_table_center`` (top centre, x y z) and
+    ``coffee_table_size`` (x, y) [m]."""
+    c = [float(v) for v in priors["coffee_table_center"]]
+    size = [float(v) for v in priors.get("coffee_table_size", (1.0, 0.6))]
+    return Table("coffee_table", np.array(c[:2]), np.array(size), c[2])
+
+
+def furniture_height(scene: dict, instruction: Instruction | None) -> float | None:
+    """The top height [m] of the furniture the sentence names as the source (every piece of
+    furniture keeps its height in every house of the task), or None."""
+    if instruction is None or instruction.source_furniture is None:
+        return None
+    furniture = scene["furniture"].get(instruction.source_furniture)
+    return None if furniture is None else float(furniture["height"])
 
 
 class ObjectSearchAgent(Diagram):
@@ -105,11 +132,10 @@ class ObjectSearchAgent(Diagram):
         )
         from pr2_drake.tasks import get_task
 
-        if "object_models" not in priors:
+        if "object_models" not in priors or "coffee_table_center" not in priors:
             raise ValueError(f"ObjectSearchAgent needs the task-6 priors (object_models, "
-                             f"instruction); got {sorted(priors)}")
+                             f"coffee_table_center, instruction); got {sorted(priors)}")
         spec = get_task(6).spec
-        scene = spec.scene
         parser = parser or InstructionParser.from_task()
         instruction, error = None, ""
         try:
@@ -123,10 +149,11 @@ class ObjectSearchAgent(Diagram):
         detector = detector or ObjectDetector(models, K)
         height = models[instruction.target].height if (
             instruction and instruction.target in models) else 0.1
-        seq = ObjectSearchSequencer(instruction, scene, detector, height,
-                                    SearchAgentParams.load(params),
-                                    NavigationParams.load(), HeadCameraKinematics(), error,
-                                    (K.height, K.width))
+        seq = ObjectSearchSequencer(
+            instruction, destination_from_priors(priors), detector, height, K,
+            1.0 / float(cam["fps"]), (spec.arena["min"], spec.arena["max"]),
+            SearchAgentParams.load(params), NavigationParams.load(), HeadCameraKinematics(),
+            error, furniture_height(spec.scene, instruction), MappingParams.load())
         build_sequencer_agent(self, seq, self.controller(priors, walking_params))
 
     @staticmethod

@@ -5,7 +5,7 @@
 
 import enum
 from dataclasses import dataclass, field
-from typing import ClassVar, List, Optional
+from typing import Any, ClassVar, List, Optional
 
 import numpy as np
 
@@ -60,6 +60,16 @@ class SearchAgentParams(Params):
     release_hold: float = 0.6
     back_speed: float = 0.10
     back_time: float = 2.0
+    scan_rate: float = 0.4
+    scan_turn_deg: float = 330.0
+    scan_capture_every: int = 2
+    scan_detect_every: int = 2
+    walk_capture_every: int = 4
+    height_tolerance: float = 0.03
+    searched_margin: float = 0.15
+    explore_max: int = 4
+    explore_distance: float = 1.0
+    blocked_distance: float = 0.6
 
 
 class Stage(enum.IntEnum):
@@ -79,6 +89,7 @@ class Stage(enum.IntEnum):
     BACK = 13
     DONE = 14
     FAILED = 15
+    SCAN = 16
 
 
 @dataclass
@@ -87,7 +98,16 @@ class SearchMemory(SequencerMemory):
     its updates (abstract state in its Context), besides :class:`SequencerMemory`.
 
     Attributes:
-        places: furniture still to search (None: not yet ordered); place: the one now.
+        map: the map of what the camera has seen (:class:`~.mapping.HeightMap`); frames: how
+            many frames it holds; frame_time: the last one's render time [s]; poses: (time,
+            X_WC) of the last updates at which a frame was rendered; capture: whether the next
+            camera sample renders.
+        surfaces: the tops to search by name (from the map); place: the one searched now;
+            searched: centres of the tops searched in vain; hints: where the target was seen
+            while scanning (W, m); explored: frontiers walked to.
+        scan_yaw, scan_turned: the heading at the last update of a scan and how far it has
+            turned [rad] (None: no scan under way). path_version: the map version the path
+            was last checked against.
         side: outward normal (x, y) of the table side the robot stands at.
         path: the waypoints being walked (W, m); goal: the pose goal (x, y, yaw).
         look_k, look_tries, t_still: the heading looked along, frames taken there, since
@@ -96,14 +116,27 @@ class SearchMemory(SequencerMemory):
         pick_goal: the pose to pick from; nav_then: the stage after NAVIGATE.
         hand: the hand that picks (0 left, 1 right); hand_path, hand_t0: its waypoints and
             their start time [s]; pick_tries: tries so far.
+        sides_tried: the table sides (outward normals) a pick missed from; retry_side: the
+            side to walk round to after stepping back from a missed pick (None: none).
         r_pick, o_pick: hand and object at the pick in the base's heading frame (m);
         hand_over_top: the hand centre above the pick table's top (m); up_H: the held
             object's vertical in the hand frame (None: not kept vertical).
         failure: why the sequence FAILED ("" while it has not); log: what happened when.
     """
 
-    stage: int = Stage.NAVIGATE
-    places: Optional[list] = None
+    stage: int = Stage.SCAN
+    map: Any = None
+    frames: int = 0
+    frame_time: float = -1.0
+    poses: list = field(default_factory=list)
+    capture: bool = False
+    surfaces: dict = field(default_factory=dict)
+    searched: list = field(default_factory=list)
+    hints: list = field(default_factory=list)
+    explored: int = 0
+    scan_yaw: Optional[float] = None
+    scan_turned: float = 0.0
+    path_version: int = -1
     place: Optional[str] = None
     side: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0]))
     path: Optional[list] = None
@@ -119,6 +152,8 @@ class SearchMemory(SequencerMemory):
     hand_path: list = field(default_factory=list)
     hand_t0: float = 0.0
     pick_tries: int = 0
+    sides_tried: list = field(default_factory=list)
+    retry_side: Optional[np.ndarray] = None
     r_pick: np.ndarray = field(default_factory=lambda: np.zeros(3))
     o_pick: np.ndarray = field(default_factory=lambda: np.zeros(3))
     hand_over_top: float = 0.0

@@ -1,8 +1,9 @@
 """Getting around the task-6 house: occupancy grid, A* paths, a path-following velocity source.
 
-The grid is built from the *public* scene description of ``tasks/6_object_search.yaml`` (the
-``scene`` block: wall segments and thickness, table footprints, decor boxes), the same
-facts a competitor reads; nothing comes from the simulator. Movable objects are not in it.
+The search agent's grid comes from its map (:meth:`~.mapping.HeightMap.grid`: what the head
+camera has seen). :meth:`OccupancyGrid.from_scene` builds one from a scene description instead
+(the ``scene`` block of ``tasks/6_object_search.yaml`` or of a generated house: wall segments
+and thickness, table footprints, decor boxes), for tests and tools that check a layout.
 
 - :class:`OccupancyGrid`: a 2-D boolean grid over the arena, world frame W (x east, y north),
   cell (i, j) covers x in [x0 + j r, x0 + (j+1) r), y in [y0 + i r, ...), r = resolution [m].

@@ -350,7 +350,7 @@ class ObjectDetector:
     def _planes(self, pts: np.ndarray, horizontal: np.ndarray) -> list[float]:
         """Heights [m] of the large horizontal surfaces in view (floor, table tops)."""
         P = self.params
-        h = pts[horizontal]
+        h = pts[horizontal & np.isfinite(pts[:, :, 2])]  # no depth: inf (or nan) points
         if len(h) == 0:
             return []
         z = h[:, 2]

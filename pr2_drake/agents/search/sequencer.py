@@ -1,5 +1,6 @@
 """ObjectSearchSequencer: the task-6 stage machine: its ports, its memory (in its Context) and
-one update; what each stage does is :mod:`pr2_drake.agents.search.stages`.
+one update; what each stage does is :mod:`pr2_drake.agents.search.stages` (search, pick, carry,
+place) and :mod:`pr2_drake.agents.search.explore` (scan, map, explore).
 """
 
 from __future__ import annotations
@@ -9,11 +10,14 @@ from typing import Optional
 import numpy as np
 from pydrake.common.value import AbstractValue
 
+from pr2_drake.agents.search.explore import ExploreStages
 from pr2_drake.agents.search.instruction import Instruction, InstructionError
+from pr2_drake.agents.search.mapping import HeightMap, MappingParams
 from pr2_drake.agents.search.memory import SearchAgentParams, SearchMemory, Stage
-from pr2_drake.agents.search.navigation import NavigationParams, OccupancyGrid
+from pr2_drake.agents.search.navigation import NavigationParams
+from pr2_drake.agents.search.perception import CameraIntrinsics
 from pr2_drake.agents.search.stages import ORDER, SearchStages
-from pr2_drake.agents.search.tables import tables_from_scene
+from pr2_drake.agents.search.tables import Table
 from pr2_drake.agents.sequencer import Now, TaskSequencer
 from pr2_drake.agents.walk_to_goal import yaw_from_quaternion
 from pr2_drake.camera import RgbdFrame
@@ -22,30 +26,36 @@ from pr2_drake.lifetime import weak_calc
 from pr2_drake.ports import BODY_STATE_SIZE, JOINT_STATE_SIZE, P_WB, QUAT_WB
 
 
-class ObjectSearchSequencer(SearchStages, TaskSequencer):
+class ObjectSearchSequencer(SearchStages, ExploreStages, TaskSequencer):
     """Stages of the search and transport (see :mod:`pr2_drake.agents.search.agent`).
 
     Inputs: ``body_state``, ``joint_state``, ``pick_state``, ``rgbd`` (RgbdFrame),
     ``walker_status``. Outputs: ``velocity_command`` (3), ``hand_targets`` ([left, right]),
-    ``pick`` (str), ``release`` (bool), ``stage`` (1), ``camera_capture`` (bool: True in
-    LOOK, the only stage that uses frames). Memory: :class:`SearchMemory`
-    (:meth:`memory` of a context).
+    ``pick`` (str), ``release`` (bool), ``stage`` (1), ``camera_capture`` (bool: whether the
+    next camera sample renders: every one in LOOK, some while scanning and walking for the
+    map, none otherwise). Memory: :class:`SearchMemory` (:meth:`memory` of a context).
 
     Args:
         instruction: the parsed sentence, or None with ``error`` the parser's message (the
             first update raises it).
-        scene: the task YAML's public ``scene`` block (walls, furniture, objects' homes).
-        detector: ``find(rgb, depth, X_WC, target) -> Detection | None``.
+        destination: the top to put the object on (the coffee table of the priors).
+        detector: ``find(rgb, depth, X_WC, target) -> Detection | None`` (or ``detect``).
         object_height: the target's height [m] (its model): the hand clears its top when it
             comes from above.
+        camera: the head camera's intrinsics and ``camera_period`` its sample period [s].
+        arena: (lo, hi) corners (x, y) of the area mapped [m].
+        expected_height: the top height [m] of the furniture the sentence names (searched
+            first), or None.
     """
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
-    def __init__(self, instruction: Optional[Instruction], scene: dict, detector,
-                 object_height: float, params: SearchAgentParams | None = None,
+    def __init__(self, instruction: Optional[Instruction], destination: Table, detector,
+                 object_height: float, camera: CameraIntrinsics, camera_period: float,
+                 arena, params: SearchAgentParams | None = None,
                  nav: NavigationParams | None = None, camera_kinematics=None,
-                 error: str = "", frame_shape=(480, 640)):
+                 error: str = "", expected_height: Optional[float] = None,
+                 mapping: MappingParams | None = None):
         super().__init__()
         from pr2_drake.controllers.model import WholeBodyModel
 
@@ -56,10 +66,12 @@ class ObjectSearchSequencer(SearchStages, TaskSequencer):
         self.detector = detector
         self.kin = camera_kinematics
         self.object_height = float(object_height)
-        self.tables = tables_from_scene(scene)
-        self.home = {k: v["table"] for k, v in scene["objects"].items()}
-        self.room_of = {k: v["room"] for k, v in scene["furniture"].items()}
-        self.grid = OccupancyGrid.from_scene(scene, self.nav.resolution)
+        self.destination = destination
+        self.expected_height = expected_height
+        self.mp = mapping or MappingParams()
+        self.K, self.camera_period = camera, float(camera_period)
+        known = HeightMap.empty(arena[0], arena[1], self.mp.resolution)
+        known = known.with_box(destination.center, destination.size, destination.height)
         self.model = WholeBodyModel()  # forward kinematics of the observed state (scratch)
         self.model.update(self.model.q_nominal, np.zeros(self.model.nv))
         # The shoulders in the base frame (the nominal pose has the base at the origin).
@@ -68,10 +80,11 @@ class ObjectSearchSequencer(SearchStages, TaskSequencer):
         self._js = self.DeclareVectorInputPort("joint_state", JOINT_STATE_SIZE)
         self._pick_state = self.DeclareAbstractInputPort("pick_state",
                                                          AbstractValue.Make(PickState()))
-        h, w = frame_shape
+        h, w = camera.height, camera.width
         blank = RgbdFrame(np.zeros((h, w, 3), np.uint8), np.zeros((h, w), np.float32))
         self._rgbd = self.DeclareAbstractInputPort("rgbd", AbstractValue.Make(blank))
-        after_update = self.declare_sequencer(SearchMemory(), self.p.period, grasp=True)
+        after_update = self.declare_sequencer(SearchMemory(map=known), self.p.period,
+                                              grasp=True)
         self.DeclareAbstractOutputPort("camera_capture", lambda: AbstractValue.Make(False),
                                        weak_calc(self._calc_capture),
                                        prerequisites_of_calc=after_update)
@@ -89,8 +102,9 @@ class ObjectSearchSequencer(SearchStages, TaskSequencer):
                   t - m.t_stage, self._pick_state.Eval(context))
         m.pick = ""
         m.release = False
-        if m.places is None:
-            self._next_place(m, p_WB, t)
+        if m.frames == 0 and m.frame_time < 0:
+            m.map = m.map.with_free_disc(p_WB, self.mp.footprint_radius)
+        self._integrate(m, now, context)
         for stages, name in ORDER:
             if m.stage in stages:
                 getattr(self, name)(m, now, context)
@@ -101,16 +115,7 @@ class ObjectSearchSequencer(SearchStages, TaskSequencer):
         frame = self._rgbd.Eval(context)
         if frame.depth.size == 0:
             return None
-        X_WC = self.kin.camera_pose(self._bs.Eval(context), self._js.Eval(context))
-        target = self.instruction.target
-        if hasattr(self.detector, "detect"):
-            found = self.detector.detect(frame.color, frame.depth, X_WC)
-            hit = next((d for d in found if d.label == target), None)
-            if hit is not None:
-                m.others = [np.asarray(d.p_WO, float) for d in found if d is not hit]
-        else:
-            hit = self.detector.find(frame.color, frame.depth, X_WC, target)
-        return None if hit is None else np.asarray(hit.p_WO, float)
+        return self._find(m, frame, self._camera_pose(context))
 
     # ---- outputs -----------------------------------------------------------------------------
     def _calc_targets(self, context, output) -> None:
@@ -123,6 +128,4 @@ class ObjectSearchSequencer(SearchStages, TaskSequencer):
         output.set_value(targets)
 
     def _calc_capture(self, context, output) -> None:
-        # Frames are used only in LOOK (``_detect``, after ``look_settle`` there): the camera
-        # renders from the first sample in LOOK on, and not at all otherwise.
-        output.set_value(bool(self.memory(context).stage == Stage.LOOK))
+        output.set_value(bool(self.memory(context).capture))

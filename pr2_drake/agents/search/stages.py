@@ -11,6 +11,7 @@ Positions in m, world frame W.
 from __future__ import annotations
 
 import math
+from typing import Optional
 
 import numpy as np
 
@@ -23,14 +24,13 @@ from pr2_drake.agents.search.tables import (
     in_heading,
     out_from_under,
     pose_at,
-    search_order,
 )
 from pr2_drake.agents.sequencer import Now, along_path
 
 #: The stages' handlers in the order an update runs them ("check_held" is not a stage: while
 #: the object should be in the hand, it checks it is).
 ORDER = (
-    ((Stage.NAVIGATE,), "_navigate"), ((Stage.LOOK,), "_look"), ((Stage.APPROACH,), "_approach"),
+    ((Stage.SCAN,), "_scan"), ((Stage.NAVIGATE,), "_navigate"), ((Stage.LOOK,), "_look"), ((Stage.APPROACH,), "_approach"),
     ((Stage.SETTLE,), "_settle"), ((Stage.REACH,), "_reach"), ((Stage.PICK,), "_pick"),
     ((Stage.LIFT,), "_lift"),
     ((Stage.LIFT, Stage.CARRY, Stage.APPROACH_TABLE, Stage.SETTLE_TABLE, Stage.PLACE),
@@ -55,10 +55,13 @@ class SearchStages:
 
     # ---- the stages --------------------------------------------------------------------------
     def _navigate(self, m: SearchMemory, now: Now, context) -> None:
-        if self._walk(m, now.p_WB, now.yaw):
+        if self._walk(m, now.p_WB, now.yaw, now.t):
             if m.nav_then == Stage.APPROACH:
                 m.goal = m.pick_goal
                 self._go(m, Stage.APPROACH, now.t)
+            elif m.nav_then == Stage.SCAN:
+                m.cmd = np.zeros(3)
+                self._go(m, Stage.SCAN, now.t)
             else:
                 self._go(m, Stage.LOOK, now.t)
                 m.t_still = -1.0
@@ -84,10 +87,11 @@ class SearchStages:
             return
         det = self._detect(m, context)
         m.look_tries += 1
-        tab = self.tables[m.place]
+        tab = m.surfaces[m.place]
         if det is not None and tab.contains(det, p.search_margin) and abs(
                 det[2] - tab.height) < 0.35:
             m.p_WO = det
+            self._refresh_place(m)
             m.log.append(f"{t:7.2f} found {self.instruction.target} at "
                             f"{np.round(det, 3).tolist()} on {m.place} "
                             f"({len(m.others)} other objects seen)")
@@ -97,6 +101,7 @@ class SearchStages:
             m.look_tries = 0
             m.look_k += 1
             if m.look_k >= len(p.look_yaws_deg):
+                self._searched(m)
                 self._next_place(m, p_WB, t)
 
     def _approach(self, m: SearchMemory, now: Now, context) -> None:
@@ -123,7 +128,7 @@ class SearchStages:
         up[:2] += (p_WH[:2] - p_WB[:2]) - ((p_WH[:2] - p_WB[:2]) @ [c, s_]) * np.array(
             [c, s_])  # keep the hand's sideways offset
         path = [up, grasp + [0.0, 0.0, p.pre_height], grasp]
-        back = out_from_under(p_WH, np.array([c, s_]), self.tables[m.place], p.edge_clearance)
+        back = out_from_under(p_WH, np.array([c, s_]), m.surfaces[m.place], p.edge_clearance)
         if back is not None:  # the body stopped short: the hand hangs under the top
             path.insert(0, back)
             if (up[:2] - p_WB[:2]) @ [c, s_] > (back[:2] - p_WB[:2]) @ [c, s_]:
@@ -148,7 +153,7 @@ class SearchStages:
             # height is a few cm off).
             m.r_pick = in_heading(p_WB, yaw, p_WH)
             m.o_pick = in_heading(p_WB, yaw, m.p_WO)
-            m.hand_over_top = float(p_WH[2] - self.tables[m.place].height)
+            m.hand_over_top = float(p_WH[2] - m.surfaces[m.place].height)
             # The object's vertical in the hand frame: the QP keeps it vertical while it
             # is set down (it stood upright; round objects roll off when set down tilted).
             # Not while walking: against the carry pose, the arm's 4 joints cannot.
@@ -159,8 +164,7 @@ class SearchStages:
         elif t - m.t_stage > p.pick_timeout:
             m.pick_tries += 1
             if m.pick_tries >= p.pick_tries:
-                m.failure = "pick failed"
-                self._go(m, Stage.FAILED, t)
+                self._pick_missed(m, p_WB, t)
             else:
                 m.targets[m.hand] = self._grasp_point(
                     m, max(p.grasp_offset - 0.03 * m.pick_tries, 0.03))
@@ -173,11 +177,7 @@ class SearchStages:
 
     def _lift(self, m: SearchMemory, now: Now, context) -> None:
         if self._follow_hand(m, now.t):
-            p = self.p
-            tab = self.tables[self.instruction.destination]
-            n = best_side(self.grid, tab, p.look_distance, self.nav.robot_radius)
-            goal = pose_at(tab, n, 0.0, p.look_distance)
-            m.side = n
+            goal = self._destination_pose(m)
             if self._plan(m, now.p_WB, goal):
                 self._go(m, Stage.CARRY, now.t)
             else:
@@ -195,8 +195,8 @@ class SearchStages:
 
     def _carry(self, m: SearchMemory, now: Now, context) -> None:
         m.targets[m.hand] = self._carry_point(m, now.p_WB, now.yaw)
-        if self._walk(m, now.p_WB, now.yaw):
-            m.goal = self._place_pose(m, self.tables[self.instruction.destination])
+        if self._walk(m, now.p_WB, now.yaw, now.t):
+            m.goal = self._place_pose(m, self.destination)
             self._go(m, Stage.APPROACH_TABLE, now.t)
 
     def _approach_table(self, m: SearchMemory, now: Now, context) -> None:
@@ -211,8 +211,7 @@ class SearchStages:
         if not now.standing:
             m.t_stage = now.t
         elif now.t - m.t_stage >= self.p.settle_time:
-            drop = self._drop_point(m, now.p_WB, now.yaw,
-                                    self.tables[self.instruction.destination])
+            drop = self._drop_point(m, now.p_WB, now.yaw, self.destination)
             self._start_hand_path(m, [drop + [0.0, 0.0, 0.08], drop], now.t)
             self._go(m, Stage.PLACE, now.t)
 
@@ -238,7 +237,28 @@ class SearchStages:
     def _back(self, m: SearchMemory, now: Now, context) -> None:
         m.cmd = np.array([-self.p.back_speed, 0.0, 0.0])
         if now.t - m.t_stage >= self.p.back_time:
-            self._go(m, Stage.DONE, now.t)
+            n, m.retry_side = m.retry_side, None
+            if n is None:
+                self._go(m, Stage.DONE, now.t)
+            elif not self._walk_round(m, m.surfaces[m.place], n, now.p_WB, now.t):
+                m.failure = "pick failed"
+                self._go(m, Stage.FAILED, now.t)
+
+    def _pick_missed(self, m: SearchMemory, p_WB, t: float) -> None:
+        """After ``pick_tries`` misses: hand up, step back and walk round to the next side of
+        the top (nearest the object, with floor in front on the map, not tried yet); FAILED
+        when there is none."""
+        m.sides_tried.append(np.array(m.side, float))
+        n = self._next_pick_side(m, m.surfaces[m.place])
+        m.log.append(f"{t:7.2f} pick missed from side {np.round(m.side, 2).tolist()}; "
+                     f"next side {None if n is None else np.round(n, 2).tolist()}")
+        if n is None:
+            m.failure = "pick failed"
+            self._go(m, Stage.FAILED, t)
+            return
+        m.retry_side = n
+        self._start_hand_path(m, [self.model.hand_point(m.hand)[0] + [0.0, 0.0, 0.10]], t)
+        self._go(m, Stage.RETRACT, t)
 
     @staticmethod
     def _stand(m: SearchMemory, now: Now, context) -> None:
@@ -251,10 +271,10 @@ class SearchStages:
         m.stage = stage
         m.t_stage = t
 
-    def _look_pose(self, name: str) -> np.ndarray:
-        """The pose ``look_distance`` out from table ``name``'s best side, facing it."""
-        tab = self.tables[name]
-        n = best_side(self.grid, tab, self.p.look_distance, self.nav.robot_radius)
+    def _look_pose(self, m: SearchMemory, name: str) -> np.ndarray:
+        """The pose ``look_distance`` out from top ``name``'s best side, facing it."""
+        tab = m.surfaces[name]
+        n = best_side(self._grid(m), tab, self.p.look_distance, self.nav.robot_radius)
         half, _, _ = tab.side_frame(n)
         xy = tab.center + n * (half + self.p.look_distance)
         return np.array([xy[0], xy[1], math.atan2(-n[1], -n[0])])
@@ -286,7 +306,8 @@ class SearchStages:
 
     def _plan(self, m: SearchMemory, p_WB, goal: np.ndarray) -> bool:
         try:
-            m.path = plan_path(self.grid, p_WB[:2], goal[:2], self.nav.robot_radius)
+            m.path = plan_path(self._grid(m), p_WB[:2], goal[:2], self.nav.robot_radius)
+            m.path_version = m.map.version
         except NoPathError as e:
             m.log.append(f"no path: {e}")
             m.path = None
@@ -317,27 +338,15 @@ class SearchStages:
                     and np.linalg.norm(m.goal[:2] - p_WB[:2]) < p.approach_accept
                     and abs(_wrap(m.goal[2] - yaw)) < 2 * math.radians(p.yaw_tolerance_deg))
 
-    def _walk(self, m: SearchMemory, p_WB, yaw: float) -> bool:
-        """Follow ``m.path`` to ``m.goal``; True within ``approach_radius`` of its end."""
+    def _walk(self, m: SearchMemory, p_WB, yaw: float, t: float) -> bool:
+        """Follow ``m.path`` to ``m.goal`` (planned again when the map shows it blocked); True
+        within ``approach_radius`` of its end."""
         if np.linalg.norm(m.goal[:2] - p_WB[:2]) < self.p.approach_radius:
             return True
+        if self._path_blocked(m, p_WB) and not self._replan(m, p_WB, t):
+            m.path = np.array([p_WB[:2]])  # stand; the stage's goal is out of reach
         m.cmd = follow_velocity(m.path, p_WB, yaw, None, self.nav)
         return False
-
-    def _next_place(self, m: SearchMemory, p_WB, t: float) -> None:
-        if m.places is None:
-            m.places = search_order(self.instruction, self.home, self.room_of, self.tables,
-                                       self.instruction.destination, p_WB)
-        while m.places:
-            m.place = m.places.pop(0)
-            goal = self._look_pose(m.place)
-            if self._plan(m, p_WB, goal):
-                m.look_k = 0
-                m.nav_then = Stage.LOOK
-                self._go(m, Stage.NAVIGATE, t)
-                return
-        self._go(m, Stage.FAILED, t)
-        m.failure = f"target {self.instruction.target!r} not found on any table"
 
     def _grasp_point(self, m: SearchMemory, offset: float) -> np.ndarray:
         """``offset`` [m] from the object's centre (inside the pick distance): towards the
@@ -386,22 +395,48 @@ class SearchStages:
         return k >= len(m.hand_path) - 1 + hold / T
 
     def _start_approach(self, m: SearchMemory, p_WB, t: float) -> None:
-        tab = self.tables[m.place]
-        look = best_side(self.grid, tab, self.p.look_distance, self.nav.robot_radius)
+        tab = m.surfaces[m.place]
+        look = best_side(self._grid(m), tab, self.p.look_distance, self.nav.robot_radius)
         # Stand at the side nearest the object (when there is room), else the look side.
         n = self._pick_side(m, tab, float(p_WB[2]))
-        if not np.allclose(n, look):
-            m.hand, stage = self._pick_pose(m, tab, n, self.p.stage_distance)
-            if self._plan(m, p_WB, stage):
-                m.hand, m.pick_goal = self._pick_pose(m, tab, n, self.p.pick_standoff)
-                m.side = n  # walk round the table first
-                m.nav_then = Stage.APPROACH
-                self._go(m, Stage.NAVIGATE, t)
-                return
+        m.sides_tried = []
+        if not np.allclose(n, look) and self._walk_round(m, tab, n, p_WB, t):
+            return
         m.hand, m.pick_goal = self._pick_pose(m, tab, look, self.p.pick_standoff)
         m.side = look
         m.goal = m.pick_goal
         self._go(m, Stage.APPROACH, t)
+
+    def _walk_round(self, m: SearchMemory, tab: Table, n: np.ndarray, p_WB, t: float) -> bool:
+        """Walk to the pick pose across side ``n`` of ``tab`` (via its stage point), then
+        APPROACH; False (nothing changed but the path) when no path reaches it."""
+        hand, stage = self._pick_pose(m, tab, n, self.p.stage_distance)
+        if not self._plan(m, p_WB, stage):
+            return False
+        m.hand, m.pick_goal = self._pick_pose(m, tab, n, self.p.pick_standoff)
+        m.side = n
+        m.nav_then = Stage.APPROACH
+        self._go(m, Stage.NAVIGATE, t)
+        return True
+
+    def _next_pick_side(self, m: SearchMemory, tab: Table) -> Optional[np.ndarray]:
+        """The side of ``tab`` not in ``m.sides_tried`` whose edge is nearest the object, with
+        free floor (on the map inflated by the robot's radius) in front of the object; None
+        when there is none."""
+        d = m.p_WO[:2] - tab.center
+        g = self._grid(m).inflated(self.nav.robot_radius)
+        best, best_depth = None, math.inf
+        for n in (np.array([1.0, 0.0]), np.array([-1.0, 0.0]), np.array([0.0, 1.0]),
+                  np.array([0.0, -1.0])):
+            if any(np.allclose(n, s) for s in m.sides_tried):
+                continue
+            half, tan, half_len = tab.side_frame(n)
+            along = float(np.clip(d @ tan, -half_len, half_len))
+            depth = half - float(d @ n)
+            if depth < best_depth and g.free(
+                    tab.center + n * (half + self.p.stage_distance) + tan * along):
+                best, best_depth = n, depth
+        return best
 
     def _pick_pose(self, m: SearchMemory, tab: Table, n: np.ndarray, standoff: float):
         """(hand, (x, y, yaw)): the hand on the object's side and the pose ``standoff`` from
@@ -420,7 +455,7 @@ class SearchStages:
         than ``pick_reach`` from the hand's shoulder there; the base at height ``z_base``),
         the side (of the four) whose edge is nearest the object, where there is floor to
         stand on in front of the object."""
-        look = best_side(self.grid, tab, self.p.look_distance, self.nav.robot_radius)
+        look = best_side(self._grid(m), tab, self.p.look_distance, self.nav.robot_radius)
         d = m.p_WO[:2] - tab.center
 
         def depth(n: np.ndarray) -> float:
@@ -428,7 +463,7 @@ class SearchStages:
 
         if self._shoulder_to_object(m, tab, look, z_base) <= self.p.pick_reach:
             return look
-        g = self.grid.inflated(self.nav.robot_radius)
+        g = self._grid(m).inflated(self.nav.robot_radius)
         best, best_depth = look, depth(look) - 0.05  # walking round must gain something
         for n in (-look, np.array([-look[1], look[0]]), np.array([look[1], -look[0]])):
             half, tan, half_len = tab.side_frame(n)

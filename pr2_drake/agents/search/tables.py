@@ -1,5 +1,6 @@
-"""The public scene description of task 6, as the search agent reads it: tables, the side to
-stand at, where to search first, and poses relative to a table or the robot's heading.
+"""The tops the task-6 search agent stands at (from its map, or the coffee table of the priors):
+the side to stand at, the order to search them in, and poses relative to a table or the robot's
+heading.
 
 Positions in m, world frame W; a pose is (x, y, yaw) [m, m, rad]; a side of a table is its
 outward unit normal (x, y).
@@ -9,16 +10,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
-from pr2_drake.agents.search.instruction import Instruction
 from pr2_drake.agents.search.navigation import OccupancyGrid
 
 
 @dataclass(frozen=True)
 class Table:
-    """A table top from the public scene description: centre (x, y), size (x, y), top height."""
+    """A flat top (a table's, from the map or the priors): centre (x, y), size (x, y) [m] (axis
+    aligned), top height [m]."""
 
     name: str
     center: np.ndarray
@@ -33,12 +35,6 @@ class Table:
 
     def contains(self, p, margin: float = 0.0) -> bool:
         return bool(np.all(np.abs(np.asarray(p)[:2] - self.center) <= self.size / 2 + margin))
-
-
-def tables_from_scene(scene: dict) -> dict[str, Table]:
-    """Every furniture top of the task YAML's ``scene`` block."""
-    return {k: Table(k, np.asarray(f["center"], float), np.asarray(f["size"], float),
-                     float(f["height"])) for k, f in scene["furniture"].items()}
 
 
 def best_side(grid: OccupancyGrid, table: Table, standoff: float, radius: float) -> np.ndarray:
@@ -60,24 +56,20 @@ def best_side(grid: OccupancyGrid, table: Table, standoff: float, radius: float)
     return best
 
 
-def search_order(instr: Instruction, vocab_home: dict[str, str], furniture_room: dict[str, str],
-                 tables: dict[str, Table], destination: str, p0) -> list[str]:
-    """Furniture keys to search, most likely first (the destination is never searched)."""
-    order: list[str] = []
-    if instr.source_furniture:
-        order.append(instr.source_furniture)
-    if instr.source_room:
-        order += [f for f, r in furniture_room.items() if r == instr.source_room]
-    home = vocab_home.get(instr.target)
-    if home:
-        order.append(home)
-    rest = sorted(tables, key=lambda k: float(np.linalg.norm(tables[k].center - p0[:2])))
-    order += rest
-    out: list[str] = []
-    for k in order:
-        if k in tables and k not in out and k != destination:
-            out.append(k)
-    return out
+def surface_order(tops: list[Table], hints: list, expected_height: Optional[float], p0,
+                  params) -> list[Table]:
+    """The tops to search, most likely first: those the target was seen on (a hint within
+    ``search_margin`` of the top, at most 0.35 m above it), then those of the height of the
+    furniture the sentence names (within ``height_tolerance``), then the nearest to p0."""
+
+    def key(s: Table):
+        hinted = any(s.contains(h, params.search_margin) and 0.0 < h[2] - s.height < 0.35
+                     for h in hints)
+        fits = expected_height is not None and abs(s.height - expected_height) <= \
+            params.height_tolerance
+        return (not hinted, not fits, float(np.linalg.norm(s.center - np.asarray(p0)[:2])))
+
+    return sorted(tops, key=key)
 
 
 def pose_at(tab: Table, n: np.ndarray, along: float, standoff: float) -> np.ndarray:
