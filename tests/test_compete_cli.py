@@ -190,7 +190,7 @@ def test_the_users_ctrl_c_writes_the_report_as_interrupted(tmp_path):
                              "--agent", f"{ATTACKERS}:Slow", "--set", "start.x=1.0",
                              "--seconds", "20", "--isolate", "--report", str(report),
                              "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+                            text=True, preexec_fn=_as_in_a_terminal)
     deadline = time.monotonic() + 120
     while not _steps_begun(proc.pid) and time.monotonic() < deadline and proc.poll() is None:
         time.sleep(0.2)
@@ -200,6 +200,12 @@ def test_the_users_ctrl_c_writes_the_report_as_interrupted(tmp_path):
     rep = json.loads(report.read_text())
     assert rep["termination"] == "interrupted" and rep["score"] == 5, rep
     assert "ended: interrupted" in out
+
+
+def _as_in_a_terminal() -> None:
+    """The child takes Ctrl-C as a command typed in a terminal does: a suite run as a
+    background job (``cmd &`` in a script) hands its children SIGINT ignored."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _steps_begun(pid: int) -> bool:
