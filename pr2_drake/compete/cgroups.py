@@ -137,6 +137,19 @@ class AgentCgroup:
         failcnt = _read(group / "memory.failcnt").strip()  # an old v1 kernel: the limit hit
         return failcnt.isdigit() and int(failcnt) > 0
 
+    def hit_limit(self) -> bool:
+        """Whether the agent's memory ever reached its limit (the kernel then reclaims, stalls
+        or kills: an agent silent after that is out of memory, not slow)."""
+        group = self.groups.get("memory")
+        if group is None:
+            return False
+        for line in _read(group / "memory.events").splitlines():  # v2
+            key, _, value = line.partition(" ")
+            if key in ("max", "oom") and value.strip().isdigit() and int(value) > 0:
+                return True
+        failcnt = _read(group / "memory.failcnt").strip()  # v1
+        return failcnt.isdigit() and int(failcnt) > 0
+
     def stuck_at_limit(self) -> bool:
         """Whether the agent's processes wait in the kernel for memory beyond the limit (a
         cgroup v1 group "under_oom" whose killer has not acted, or one already killed)."""

@@ -262,6 +262,8 @@ class AgentProcess:
                 if budget.left() > 0.0:
                     continue  # starved by a busy machine, not out of budget
                 self._terminate()
+                if self.cgroup is not None and self.cgroup.hit_limit():
+                    raise AgentFault("agent_memory", self._over_memory())
                 raise AgentFault("agent_timeout", budget.spent())
             chunk = os.read(self._r, n - len(out))
             if not chunk:
