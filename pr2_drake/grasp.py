@@ -347,4 +347,11 @@ def _stable_gains(gains: GraspGains, plant: MultibodyPlant, g: Graspable) -> Gra
 
 
 class _NoAttachment:
-    """Marker for the empty attachment state."""
+    """Marker for the empty attachment state (no fields: a copy is the same marker)."""
+
+    __slots__ = ()
+
+    def __deepcopy__(self, memo) -> "_NoAttachment":
+        # Drake copies this abstract state at every update of the grasp system (100 Hz); the
+        # generic deepcopy of an empty object costs ~10 us.
+        return self
