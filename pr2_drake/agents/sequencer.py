@@ -47,6 +47,21 @@ class SequencerMemory:
     pick: str = ""
     release: bool = False
 
+    def __deepcopy__(self, memo) -> "SequencerMemory":
+        # Drake copies this abstract state at every update (50 Hz): copy.deepcopy's own
+        # result (a new object of this class, each field deep-copied, shared references kept
+        # shared through ``memo``), without its generic reduce/reconstruct path for the
+        # dataclass itself and with immutable scalars taken as they are.
+        new = object.__new__(type(self))
+        memo[id(self)] = new
+        fields = new.__dict__
+        for name, value in self.__dict__.items():
+            fields[name] = value if type(value) in _IMMUTABLE else copy.deepcopy(value, memo)
+        return new
+
+
+_IMMUTABLE = frozenset({type(None), bool, int, float, str})
+
 
 class Now(NamedTuple):
     """What one update reads: time [s], base position p_WB [m] and heading [rad], whether the
