@@ -310,6 +310,8 @@ class Testbed(Diagram):
         builder.ExportOutput(sampler.GetOutputPort("rgbd"), "rgbd")
         # Capture on demand: unconnected, every sample renders (RgbdSampler).
         builder.ExportInput(sampler.GetInputPort("capture"), "camera_capture")
+        # Depth-only frames on demand: unconnected, every frame has colour.
+        builder.ExportInput(sampler.GetInputPort("capture_color"), "camera_capture_color")
 
     def _add_referee(self, builder: DiagramBuilder) -> None:
         referee = builder.AddNamedSystem(

@@ -1,6 +1,7 @@
 """Capture on demand: the head camera renders at a sample only when its ``capture`` input (the
 testbed's ``camera_capture``) asks for it, and at every sample when nothing is connected; the
-task-6 agent asks only while it looks; ``camera_capture`` as an Env action."""
+task-6 agent asks only while it looks; ``capture_color`` False renders depth only;
+``camera_capture`` as an Env action."""
 
 import math
 
@@ -47,9 +48,9 @@ def _count_renders(sampler) -> list:
     times = []
     render = sampler._render
 
-    def counted(context, state):
+    def counted(context, state, *color):
         times.append(context.get_time())
-        render(context, state)
+        render(context, state, *color)
 
     sampler._render = counted
     return times
@@ -90,6 +91,27 @@ def test_false_renders_nothing_and_keeps_the_frame():
     sampler.GetInputPort("capture").FixValue(ctx, False)
     sim.AdvanceTo(0.55)
     assert renders == pytest.approx([0.0, 0.4, 0.5])
+
+
+def test_capture_color_false_renders_depth_only():
+    sampler, ctx = _sampler(True)
+    sampler.GetInputPort("capture_color").FixValue(ctx, False)
+    sim = Simulator(sampler, ctx)
+    sim.Initialize()  # the initialization renders colour
+    assert np.all(_frame(sampler, ctx).color == 1)
+    _show(sampler, ctx, 2)
+    sim.AdvanceTo(0.15)
+    frame = _frame(sampler, ctx)
+    assert frame.time == pytest.approx(0.1) and np.all(frame.depth == 2.0)
+    assert frame.color.shape == (0, 0, 3) and frame.color.dtype == np.uint8
+    sampler.GetInputPort("capture_color").FixValue(ctx, True)
+    sim.AdvanceTo(0.25)
+    assert np.all(_frame(sampler, ctx).color == 2)
+    sampler.GetInputPort("capture_color").FixValue(ctx, False)
+    sampler.capture_always = True  # the video recorder wants colour in every frame
+    _show(sampler, ctx, 3)
+    sim.AdvanceTo(0.35)
+    assert np.all(_frame(sampler, ctx).color == 3)
 
 
 def test_the_capture_port_holds_a_bool():
@@ -145,19 +167,23 @@ def test_testbed_exports_camera_capture_only_with_the_camera():
 
 def test_sequencer_asks_for_frames_to_map_and_to_look():
     """Every camera sample while it looks, every 2nd while it scans, every 4th while it walks
-    (the map), none while it approaches, reaches or places."""
+    (the map), none while it approaches, reaches or places; colour while it scans or looks
+    (frames the detector may see), not while it approaches."""
     from pr2_drake.agents.search.memory import Stage
     from tests.test_search_agent import StubDetector, searching, sequencer
 
     def captures(sim, seq, ctx, t0, t1):
         out, t = [], t0
+        color.append(None)  # a new run: no stage before its first update
         while t < t1 - 1e-9:
             t += 0.02
             sim.AdvanceTo(t)
             m = seq.memory(ctx)
             out.append((round(t, 2), m.stage, bool(seq.GetOutputPort("camera_capture").Eval(ctx))))
+            color.append((m.stage, bool(seq.GetOutputPort("camera_capture_color").Eval(ctx))))
         return out
 
+    color = []  # (stage, colour asked) at each update: colour while scanning or looking only
     seq, ctx = sequencer(detector=StubDetector(np.array([2.3, 2.7, 0.63])))
     seq.GetInputPort("body_state").FixValue(ctx, _body(2.0, 1.0, 0.0))
     from pydrake.systems.analysis import Simulator
@@ -175,6 +201,10 @@ def test_sequencer_asks_for_frames_to_map_and_to_look():
     assert np.allclose(np.diff(asked), 0.1, atol=0.021)
     assert Stage.APPROACH in {stage for _, stage, _ in seen}
     assert not any(c for _, stage, c in seen if stage == Stage.APPROACH)
+    # An update decides from the stage it starts in: the stage the update before ended in.
+    decided = [(a[0], b[1]) for a, b in zip(color, color[1:]) if a is not None and b is not None]
+    assert {c for stage, c in decided if stage in (Stage.SCAN, Stage.LOOK)} == {True}
+    assert {c for stage, c in decided if stage == Stage.APPROACH} == {False}
 
 
 def _body(x: float, y: float, yaw: float) -> np.ndarray:
@@ -201,9 +231,9 @@ def test_task6_agent_renders_only_while_it_looks(tmp_path):
     sampler = ep.testbed.GetSubsystemByName("head_camera_sampler")
     render = sampler._render
 
-    def counted(context, state):
+    def counted(context, state, *color):
         renders.append((context.get_time(), seq.memory(seq_context).stage))
-        render(context, state)
+        render(context, state, *color)
 
     sampler._render = counted
     ep.initialize()

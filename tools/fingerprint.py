@@ -1,6 +1,6 @@
 """Bit-identity fingerprints of the default agents' episodes (a refactoring check).
 
-    python tools/fingerprint.py --tasks 1,2,3,4,5,6 --seeds 0:2 --out fp.json
+    python tools/fingerprint.py --tasks 1,2,3,4,5,6 --seeds 0:2 --out fp.json [--variation]
 
 Runs each (task, seed) with the task's default agent, as ``pr2-drake run`` does, and writes its
 report plus a SHA-256 of the plant's whole state (positions and velocities, float64 bytes) at
@@ -32,6 +32,8 @@ def main() -> int:
     p.add_argument("--seeds", default="0:1")
     p.add_argument("--seconds", type=float, default=None)
     p.add_argument("--out", required=True)
+    p.add_argument("--variation", action="store_true",
+                   help="scene variation on (--set scene.variation=true)")
     p.add_argument("--extra", action="store_true",
                    help="also: next_action agents, flat ground, a diagram YAML (2 s each)")
     a = p.parse_args()
@@ -56,7 +58,11 @@ def main() -> int:
     for task in (int(t) for t in a.tasks.split(",")):
         for seed in range(lo, hi):
             start = time.perf_counter()
-            r = run_episode(Scenario(task=task, seed=seed, seconds=a.seconds))
+            kw = {}
+            if a.variation:
+                from pr2_drake.scenario import SceneSettings
+                kw["scene"] = SceneSettings(variation=True)
+            r = run_episode(Scenario(task=task, seed=seed, seconds=a.seconds, **kw))
             r.pop("wall_time", None)
             r.pop("real_time_factor", None)
             out.append(r)

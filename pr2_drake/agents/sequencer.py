@@ -33,7 +33,8 @@ from pr2_drake.lifetime import weak_calc
 #: The walking controller's status fields by name (its ``status`` output, a vector).
 WALKER_STATUS = {name: i for i, name in enumerate(STATUS_FIELDS)}
 #: The agent's outputs, in this order, besides the walker's legs and arms commands.
-EXPORTED = ("pick", "release", "velocity_command", "stage", "camera_capture")
+EXPORTED = ("pick", "release", "velocity_command", "stage", "camera_capture",
+            "camera_capture_color")
 
 
 @dataclass

@@ -65,6 +65,18 @@ class ExploreStages:
             else 0)
         m.capture = bool(every) and self._sample_index(now.t + self.p.period) % every == 0 \
             and self._on_sample(now.t + self.p.period)
+        m.capture_color = self._detector_may_see(m, now)
+
+    def _detector_may_see(self, m: SearchMemory, now: Now) -> bool:
+        """Whether the next frame may reach the detector: frames rendered while scanning
+        (:meth:`_integrate`) or looking (the look's frame comes after ``look_settle`` in
+        LOOK), and those of the walk to a scan's spot rendered near its end (the stage may
+        turn to SCAN before such a frame is mapped). Other frames only feed the map."""
+        if m.stage in (Stage.SCAN, Stage.LOOK):
+            return True
+        return bool(m.stage == Stage.NAVIGATE and m.nav_then == Stage.SCAN
+                    and np.linalg.norm(m.goal[:2] - now.p_WB[:2])
+                    < self.p.approach_radius + self.p.color_margin)
 
     def _sample_index(self, t: float) -> int:
         return int(round(t / self.camera_period))
@@ -187,6 +199,8 @@ class ExploreStages:
     def _find(self, m: SearchMemory, frame, X_WC) -> Optional[np.ndarray]:
         """The target's centre in this frame (W), or None."""
         target = self.instruction.target
+        if frame.color.size == 0:  # a depth-only frame (see _detector_may_see): not seen
+            return None
         if hasattr(self.detector, "detect"):
             found = self.detector.detect(frame.color, frame.depth, X_WC)
             hit = next((d for d in found if d.label == target), None)

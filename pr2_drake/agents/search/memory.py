@@ -65,6 +65,7 @@ class SearchAgentParams(Params):
     scan_capture_every: int = 2
     scan_detect_every: int = 2
     walk_capture_every: int = 4
+    color_margin: float = 0.25
     height_tolerance: float = 0.03
     searched_margin: float = 0.15
     explore_max: int = 4
@@ -101,7 +102,9 @@ class SearchMemory(SequencerMemory):
         map: the map of what the camera has seen (:class:`~.mapping.HeightMap`); frames: how
             many frames it holds; frame_time: the last one's render time [s]; poses: (time,
             X_WC) of the last updates at which a frame was rendered; capture: whether the next
-            camera sample renders.
+            camera sample renders; capture_color: whether it renders colour too (a frame the
+            detector may see: scanning, looking, and walking the last ``color_margin`` to a
+            scan's spot; else depth only).
         surfaces: the tops to search by name (from the map); place: the one searched now;
             searched: centres of the tops searched in vain; hints: where the target was seen
             while scanning (W, m); explored: frontiers walked to.
@@ -130,6 +133,7 @@ class SearchMemory(SequencerMemory):
     frame_time: float = -1.0
     poses: list = field(default_factory=list)
     capture: bool = False
+    capture_color: bool = True
     surfaces: dict = field(default_factory=dict)
     searched: list = field(default_factory=list)
     hints: list = field(default_factory=list)

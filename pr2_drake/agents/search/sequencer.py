@@ -88,6 +88,9 @@ class ObjectSearchSequencer(SearchStages, ExploreStages, TaskSequencer):
         self.DeclareAbstractOutputPort("camera_capture", lambda: AbstractValue.Make(False),
                                        weak_calc(self._calc_capture),
                                        prerequisites_of_calc=after_update)
+        self.DeclareAbstractOutputPort("camera_capture_color", lambda: AbstractValue.Make(True),
+                                       weak_calc(self._calc_capture_color),
+                                       prerequisites_of_calc=after_update)
 
     def step(self, context, m: SearchMemory) -> None:
         t = context.get_time()
@@ -129,3 +132,6 @@ class ObjectSearchSequencer(SearchStages, ExploreStages, TaskSequencer):
 
     def _calc_capture(self, context, output) -> None:
         output.set_value(bool(self.memory(context).capture))
+
+    def _calc_capture_color(self, context, output) -> None:
+        output.set_value(bool(self.memory(context).capture_color))
