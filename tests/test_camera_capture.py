@@ -167,8 +167,9 @@ def test_testbed_exports_camera_capture_only_with_the_camera():
 
 def test_sequencer_asks_for_frames_to_map_and_to_look():
     """Every camera sample while it looks, every 2nd while it scans, every 4th while it walks
-    (the map), none while it approaches, reaches or places; colour while it scans or looks
-    (frames the detector may see), not while it approaches."""
+    (the map), none while it approaches, reaches or places; colour in the frames the
+    detector may see (scanning; a look's last frames before it detects), not while it
+    approaches."""
     from pr2_drake.agents.search.memory import Stage
     from tests.test_search_agent import StubDetector, searching, sequencer
 
@@ -183,7 +184,7 @@ def test_sequencer_asks_for_frames_to_map_and_to_look():
             color.append((m.stage, bool(seq.GetOutputPort("camera_capture_color").Eval(ctx))))
         return out
 
-    color = []  # (stage, colour asked) at each update: colour while scanning or looking only
+    color = []  # (stage, colour asked) at each update
     seq, ctx = sequencer(detector=StubDetector(np.array([2.3, 2.7, 0.63])))
     seq.GetInputPort("body_state").FixValue(ctx, _body(2.0, 1.0, 0.0))
     from pydrake.systems.analysis import Simulator
@@ -203,7 +204,10 @@ def test_sequencer_asks_for_frames_to_map_and_to_look():
     assert not any(c for _, stage, c in seen if stage == Stage.APPROACH)
     # An update decides from the stage it starts in: the stage the update before ended in.
     decided = [(a[0], b[1]) for a, b in zip(color, color[1:]) if a is not None and b is not None]
-    assert {c for stage, c in decided if stage in (Stage.SCAN, Stage.LOOK)} == {True}
+    assert {c for stage, c in decided if stage == Stage.SCAN} == {True}
+    # A look: depth only while it settles, colour from shortly before its detection.
+    look_color = [c for stage, c in decided if stage == Stage.LOOK]
+    assert not look_color[0] and look_color[-1]
     assert {c for stage, c in decided if stage == Stage.APPROACH} == {False}
 
 

@@ -66,6 +66,7 @@ class SearchAgentParams(Params):
     scan_detect_every: int = 2
     walk_capture_every: int = 4
     color_margin: float = 0.25
+    color_lead: float = 0.35
     height_tolerance: float = 0.03
     searched_margin: float = 0.15
     explore_max: int = 4
@@ -103,8 +104,8 @@ class SearchMemory(SequencerMemory):
             many frames it holds; frame_time: the last one's render time [s]; poses: (time,
             X_WC) of the last updates at which a frame was rendered; capture: whether the next
             camera sample renders; capture_color: whether it renders colour too (a frame the
-            detector may see: scanning, looking, and walking the last ``color_margin`` to a
-            scan's spot; else depth only).
+            detector may see: scanning, ``color_lead`` before a look's detection, and walking
+            the last ``color_margin`` to a scan's spot; else depth only).
         surfaces: the tops to search by name (from the map); place: the one searched now;
             searched: centres of the tops searched in vain; hints: where the target was seen
             while scanning (W, m); explored: frontiers walked to.
