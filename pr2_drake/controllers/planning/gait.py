@@ -39,6 +39,7 @@ import numpy as np
 
 from pr2_drake.controllers.frames import rot2, rot_y, rot_z, wrap, yaw_of
 from pr2_drake.controllers.planning.com_plan import ComPlanner, zmp_point
+from pr2_drake.controllers.planning.liftoff import LiftoffRule
 from pr2_drake.controllers.planning.footsteps import (
     SIDE_SIGN,
     FootstepPlanner,
@@ -82,6 +83,7 @@ class GaitPlanner:
         self.com_planner = ComPlanner(params.gait, self.gravity)
         self.swing_z_error = 0.0  # [m] swing sole height above its desired height (last tick)
         self.plan = WholeBodyPlan()
+        self.liftoff = LiftoffRule(params.gait)
         self.reset()
 
     # ---- state -------------------------------------------------------------------------------
@@ -97,6 +99,7 @@ class GaitPlanner:
         self._step_over = False  # the swing is a high one the footstep planner asked for
         self.heading: float | None = None
         self.t_last: float | None = None
+        self._dt = 0.0
         self.t_touchdown = -np.inf
         self.command = np.zeros(3)
         self.z_target: float | None = None
@@ -133,6 +136,7 @@ class GaitPlanner:
             self.reset()  # the simulation restarted
         dt = 0.0 if self.t_last is None else t - self.t_last
         self.t_last = t
+        self._dt = dt
         # The command used is rate-limited (acceleration limits), except that stopping the
         # walking (all zero) is immediate.
         lim = p.limits
@@ -184,23 +188,23 @@ class GaitPlanner:
             elapsed = t - self.t_phase
             omega = math.sqrt(self.gravity / g.com_height)
             d = com[:2] + comd[:2] / omega - self.start_dcm[2]
-            err = math.sqrt(d.dot(d))  # (np.linalg.norm's own sum)
-            if elapsed >= min(self.phase_duration, g.min_double_support) - 1e-9 and (
-                    err > self._shift_err + 1e-4 and err > g.runaway_dcm_error):
+            self.liftoff.update(math.sqrt(d.dot(d)), self._dt)
+            if (elapsed >= min(self.phase_duration, g.min_double_support) - 1e-9
+                    and self.liftoff.running_away()):
                 self._lift_off(t, com, comd)  # the DCM runs away: step now
-            elif elapsed >= self.phase_duration - 1e-9:
-                # Stay longer only while the double support is still reducing the error.
-                if (err < g.liftoff_dcm_tolerance or err >= self._shift_err - 1e-4
-                        or elapsed >= self.phase_duration + g.max_shift_extension - 1e-9):
-                    self._lift_off(t, com, comd)
-            self._shift_err = err
+            elif (elapsed >= self.phase_duration - 1e-9
+                  and self.liftoff.done(elapsed, self.phase_duration)):
+                self._lift_off(t, com, comd)
         if self.phase == Phase.SINGLE:
             swing_side = 1 - self.stance
             self.swing.advance(t)
             progress = self.swing.progress
             # Swing sole height above the stance sole, or above its target on known terrain.
+            # Against the stance sole measured now (an error of the base estimate moves
+            # both soles alike and cancels), not against its height at touchdown.
+            z_shift = m.sole_pose(self.stance).translation()[2] - self.footholds[self.stance][2]
             z_ref = (self.swing.target[2] if self.terrain.known_heights
-                     else self.footholds[self.stance][2])
+                     else self.footholds[self.stance][2]) + z_shift
             heights = m.contact_heights(swing_side) - z_ref
             blocked = (g.blocked_touchdown_error > 0 and progress >= g.early_touchdown_phase
                        and self.swing_z_error > g.blocked_touchdown_error
@@ -380,7 +384,7 @@ class GaitPlanner:
         decay = np.exp(-omega * (g.swing_time + 0.5 * g.double_support))
         xi_end = p_st + (p_new + b1 - p_st) * decay
         self.start_dcm = (t, com[:2] + comd[:2] / omega, xi_end)
-        self._shift_err = np.inf
+        self.liftoff.reset()
         self.phase = phase
         self.t_phase = t
         self.phase_duration = duration
