@@ -89,6 +89,7 @@ class GaitParams:
     ankle_zmp_range: float = 0.04  # [m] ... within this distance of the sole centre
     speed_gain: float = 0.3  # per step: integral correction of the planned speed
     speed_correction_max: float = 0.15  # [m/s]
+    speed_hold_change: float = 0.03  # [m/s] a linear command change that holds it
     min_swing_time: float = 0.18  # [s] step timing: a swing may be shortened to this
     min_remaining_swing: float = 0.08  # [s] ... but never lands sooner than this from now
     min_double_support: float = 0.04  # [s] double support ends this early if the DCM ...
