@@ -115,18 +115,6 @@ class WholeBodyModel:
         self._hand = [None, None]
         self._hand_rot = [None, None]
 
-    def predict(self, q: np.ndarray, v: np.ndarray, vdot: np.ndarray,
-                h: float) -> tuple[np.ndarray, np.ndarray]:
-        """(q, v) after h [s] at the constant acceleration ``vdot`` (the base quaternion
-        integrated and normalised): the state the next commands will act on when they reach
-        the joints h late."""
-        self.plant.SetPositionsAndVelocities(self.context, np.concatenate([q, v]))
-        qdot = self.plant.MapVelocityToQDot(self.context, v + (0.5 * h) * vdot)
-        q1 = q + h * qdot
-        quat = self.maps.q_base[:4]
-        q1[quat] /= np.linalg.norm(q1[quat])
-        return q1, v + h * vdot
-
     # ---- terms (cached per update: treat the returned arrays as read-only) -------------------
     def mass_matrix(self) -> np.ndarray:
         if self._M is None:

@@ -189,7 +189,6 @@ class WalkingParams(Params):
 
     FILE: ClassVar[str] = "params/controllers/walking.yaml"
     control_period: float = 0.004  # [s] QP rate; torques are held in between
-    state_prediction: float = 0.0  # [s] the measured state predicted this far ahead
     gait: GaitParams = field(default_factory=GaitParams)
     limits: CommandLimits = field(default_factory=CommandLimits)
     qp: QpParams = field(default_factory=QpParams)

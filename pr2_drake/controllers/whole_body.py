@@ -290,9 +290,6 @@ class WholeBodyController:
         cmd = check_command(command)
         targets = check_hand_targets(hand_targets)
         m = self.model
-        h = self.params.state_prediction
-        if h > 0.0 and self.last_result is not None and self.last_result.ok:
-            q, v = m.predict(q, v, self.last_result.vdot, h)
         m.update(q, v)
         com, comd, _, _ = m.com()
         lean = None
