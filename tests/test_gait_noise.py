@@ -111,3 +111,22 @@ def test_a_real_command_change_holds_the_correction():
         return [0.1 + 0.2 * t, 0.0, 0.0]  # 0.2 m/s^2: a new command every step
     value = _walk_steps(SpeedCorrection(g), ramp, [0.0, -0.05], 6)
     assert np.all(value == 0.0)
+
+
+def test_a_learnt_correction_fades_when_the_command_changes():
+    """A correction learnt on a steady walk (drift to the right) shrinks, step by step, once
+    the agent's command really changes (an approach's small, varying steps)."""
+    g = _gait()
+    corr = SpeedCorrection(g)
+    learnt = _walk_steps(corr, lambda t: [0.2, 0.0, 0.0], [0.2, -0.05], 8).copy()
+    assert learnt[1] > 0.05
+
+    def approach(t):  # a P-law on a swaying base: vy between -0.02 and -0.10 m/s
+        return [0.0, -0.06 + 0.04 * math.sin(14 * t), 0.0]
+    t, com = 8 * g.step_period, np.zeros(2)
+    for _ in range(4):
+        for _ in range(int(round(g.step_period / DT))):
+            t += DT
+            corr.observe_command(t, approach(t), approach(t))
+        corr.touchdown(t, com, np.asarray(approach(t)), 0.0)
+    assert abs(corr.value[1]) <= learnt[1] * g.speed_hold_decay ** 3 + 1e-12

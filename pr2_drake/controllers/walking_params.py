@@ -90,6 +90,7 @@ class GaitParams:
     speed_gain: float = 0.3  # per step: integral correction of the planned speed
     speed_correction_max: float = 0.15  # [m/s]
     speed_hold_change: float = 0.03  # [m/s] a linear command change that holds it
+    speed_hold_decay: float = 0.5  # ... and shrinks it by this factor per step
     min_swing_time: float = 0.18  # [s] step timing: a swing may be shortened to this
     min_remaining_swing: float = 0.08  # [s] ... but never lands sooner than this from now
     min_double_support: float = 0.04  # [s] double support ends this early if the DCM ...

@@ -8,7 +8,8 @@ speed the footstep planner is given (clipped to ``speed_correction_max`` [m/s]).
 
 The integration holds while the linear command really changes (a ramp of the acceleration
 limit, or a change beyond ``speed_hold_change`` [m/s] since the step began), so that a new
-command is not fought as an error (wind-up). An agent's small per-tick adjustments (a heading
+command is not fought as an error (wind-up), and the correction then shrinks by the factor
+``speed_hold_decay`` per step: it was learnt for another command. An agent's small per-tick adjustments (a heading
 loop trims vx and the yaw rate at every tick) do not hold it: with them held, a bias was never
 corrected and the robot left a road sideways.
 """
@@ -62,9 +63,13 @@ class SpeedCorrection:
         g = self.gait
         t0, c0 = self._step
         self._step = (t, np.array(com_xy[:2], dtype=float))
-        if (t - t0 < 0.5 * g.step_period or t - t0 > 3.0 * g.step_period
-                or t0 < self._t_change):
-            return  # no integration over odd steps or while the command changes (wind-up)
+        if t0 < self._t_change:
+            # The command changed: what was learnt for the old one fades (a lateral correction
+            # wound up while turning cancelled a valve approach's small sideways steps).
+            self.value *= g.speed_hold_decay
+            return
+        if t - t0 < 0.5 * g.step_period or t - t0 > 3.0 * g.step_period:
+            return  # no integration over odd steps
         v_H = rot2(heading).T @ (com_xy[:2] - c0) / (t - t0)
         err = command[:2] - v_H
         if t0 < self._t_any_change:
