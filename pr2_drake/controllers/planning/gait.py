@@ -39,6 +39,8 @@ import numpy as np
 
 from pr2_drake.controllers.frames import rot2, rot_y, rot_z, wrap, yaw_of
 from pr2_drake.controllers.planning.com_plan import ComPlanner, zmp_point
+from pr2_drake.controllers.planning.liftoff import LiftoffRule
+from pr2_drake.controllers.planning.speed_correction import SpeedCorrection
 from pr2_drake.controllers.planning.footsteps import (
     SIDE_SIGN,
     FootstepPlanner,
@@ -82,6 +84,8 @@ class GaitPlanner:
         self.com_planner = ComPlanner(params.gait, self.gravity)
         self.swing_z_error = 0.0  # [m] swing sole height above its desired height (last tick)
         self.plan = WholeBodyPlan()
+        self.speed_correction = SpeedCorrection(params.gait)
+        self.liftoff = LiftoffRule(params.gait)
         self.reset()
 
     # ---- state -------------------------------------------------------------------------------
@@ -97,13 +101,11 @@ class GaitPlanner:
         self._step_over = False  # the swing is a high one the footstep planner asked for
         self.heading: float | None = None
         self.t_last: float | None = None
+        self._dt = 0.0
         self.t_touchdown = -np.inf
         self.command = np.zeros(3)
         self.z_target: float | None = None
-        self.v_correction = np.zeros(2)
-        self._td_com = (0.0, np.zeros(2))
-        self._t_command_change = np.inf
-        self._last_command = [0.0, 0.0, 0.0]
+        self.speed_correction.reset(-np.inf, np.zeros(2))
         self.com_offset = None
         self._pelvis_yaw: float | None = None
         self._pelvis_R = None
@@ -133,6 +135,7 @@ class GaitPlanner:
             self.reset()  # the simulation restarted
         dt = 0.0 if self.t_last is None else t - self.t_last
         self.t_last = t
+        self._dt = dt
         # The command used is rate-limited (acceleration limits), except that stopping the
         # walking (all zero) is immediate.
         lim = p.limits
@@ -145,11 +148,7 @@ class GaitPlanner:
         else:
             cmd = tc
         self.command = np.array(cmd)
-        last = self._last_command
-        if any(abs(x - c) > 1e-9 for x, c in zip(tc, cmd)) or any(
-                abs(c - b) > 1e-9 for c, b in zip(cmd, last)):
-            self._t_command_change = t
-        self._last_command = cmd
+        self.speed_correction.observe_command(t, tc, cmd)
 
         R_WB = m.base_rotation()
         pelvis_yaw = yaw_of(R_WB)
@@ -184,23 +183,23 @@ class GaitPlanner:
             elapsed = t - self.t_phase
             omega = math.sqrt(self.gravity / g.com_height)
             d = com[:2] + comd[:2] / omega - self.start_dcm[2]
-            err = math.sqrt(d.dot(d))  # (np.linalg.norm's own sum)
-            if elapsed >= min(self.phase_duration, g.min_double_support) - 1e-9 and (
-                    err > self._shift_err + 1e-4 and err > g.runaway_dcm_error):
+            self.liftoff.update(math.sqrt(d.dot(d)), self._dt)
+            if (elapsed >= min(self.phase_duration, g.min_double_support) - 1e-9
+                    and self.liftoff.running_away()):
                 self._lift_off(t, com, comd)  # the DCM runs away: step now
-            elif elapsed >= self.phase_duration - 1e-9:
-                # Stay longer only while the double support is still reducing the error.
-                if (err < g.liftoff_dcm_tolerance or err >= self._shift_err - 1e-4
-                        or elapsed >= self.phase_duration + g.max_shift_extension - 1e-9):
-                    self._lift_off(t, com, comd)
-            self._shift_err = err
+            elif (elapsed >= self.phase_duration - 1e-9
+                  and self.liftoff.done(elapsed, self.phase_duration)):
+                self._lift_off(t, com, comd)
         if self.phase == Phase.SINGLE:
             swing_side = 1 - self.stance
             self.swing.advance(t)
             progress = self.swing.progress
             # Swing sole height above the stance sole, or above its target on known terrain.
+            # Against the stance sole measured now (an error of the base estimate moves
+            # both soles alike and cancels), not against its height at touchdown.
+            z_shift = m.sole_pose(self.stance).translation()[2] - self.footholds[self.stance][2]
             z_ref = (self.swing.target[2] if self.terrain.known_heights
-                     else self.footholds[self.stance][2])
+                     else self.footholds[self.stance][2]) + z_shift
             heights = m.contact_heights(swing_side) - z_ref
             blocked = (g.blocked_touchdown_error > 0 and progress >= g.early_touchdown_phase
                        and self.swing_z_error > g.blocked_touchdown_error
@@ -360,8 +359,7 @@ class GaitPlanner:
         stance = 1 - first_swing
         g = self.params.gait
         self.stance = stance
-        self.v_correction = np.zeros(2)
-        self._td_com = (t, com[:2].copy())
+        self.speed_correction.reset(t, com)
         self.swing_plan = self.footsteps.next_steps(self.footholds[stance], stance,
                                                     self.heading, c, 1)[0]
         self._begin_shift(t, com, comd, Phase.START, g.start_shift)
@@ -380,7 +378,7 @@ class GaitPlanner:
         decay = np.exp(-omega * (g.swing_time + 0.5 * g.double_support))
         xi_end = p_st + (p_new + b1 - p_st) * decay
         self.start_dcm = (t, com[:2] + comd[:2] / omega, xi_end)
-        self._shift_err = np.inf
+        self.liftoff.reset()
         self.phase = phase
         self.t_phase = t
         self.phase_duration = duration
@@ -476,30 +474,16 @@ class GaitPlanner:
             self.t_phase = t
             self.phase_duration = g.stop_settle
             return
-        self._update_speed_correction(t, com)
+        self.speed_correction.touchdown(t, com, self.command, self.heading)
         self.swing_plan = self.footsteps.next_steps(new, landed, self.heading,
                                                     self._plan_command(), 1)[0]
         self._begin_shift(t, com, comd, Phase.DOUBLE, g.double_support)
-
-    def _update_speed_correction(self, t: float, com) -> None:
-        """Integral correction of the planned speed from the CoM speed over the last step."""
-        g = self.params.gait
-        t0, c0 = self._td_com
-        self._td_com = (t, com[:2].copy())
-        if (t - t0 < 0.5 * g.step_period or t - t0 > 3.0 * g.step_period
-                or t0 < self._t_command_change):
-            return  # no integration over odd steps or while the command ramps (wind-up)
-        R = rot2(self.heading)
-        v_H = R.T @ (com[:2] - c0) / (t - t0)
-        err = self.command[:2] - v_H
-        lim = g.speed_correction_max
-        self.v_correction = np.clip(self.v_correction + g.speed_gain * err, -lim, lim)
 
     def _plan_command(self) -> np.ndarray:
         """The command the footstep planner uses: the command plus the speed correction."""
         c = self.command.copy()
         if self._moving():
-            c[:2] += self.v_correction
+            c[:2] += self.speed_correction.value
         return c
 
     def _square(self, a: np.ndarray, b: np.ndarray, side_a: int) -> bool:

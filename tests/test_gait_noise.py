@@ -1,0 +1,132 @@
+"""The gait planner's decisions under sensor noise and an agent's per-tick commands.
+
+Parts tested alone (no simulation): the lift-off rule of double support
+(:mod:`pr2_drake.controllers.planning.liftoff`) and the integral speed correction
+(:mod:`pr2_drake.controllers.planning.speed_correction`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pr2_drake.controllers.planning.liftoff import LiftoffRule
+from pr2_drake.controllers.planning.speed_correction import SpeedCorrection
+from pr2_drake.controllers.walking_params import WalkingParams
+
+DT = 0.004  # [s] the controller's tick
+
+
+def _gait():
+    return WalkingParams.load().gait
+
+
+def _noisy_shift(rng, sigma: float, seconds: float, start: float, rate: float):
+    """DCM errors [m] of a shift that reduces the error at ``rate`` [m/s], with white noise."""
+    n = int(round(seconds / DT))
+    return [max(start - rate * k * DT, 0.0) + sigma * rng.standard_normal() for k in range(n)]
+
+
+def test_noise_does_not_look_like_a_runaway():
+    """A shrinking DCM error with the noise of the randomised body_state (about 5 mm per axis
+    after dividing the velocity noise by omega) never triggers the runaway rule, though
+    tick to tick it 'grows' at about half the ticks."""
+    g = _gait()
+    rng = np.random.default_rng(7)
+    errs = _noisy_shift(rng, 0.005, 0.3, start=0.09, rate=0.15)
+    raw_grows = sum(b > a + 1e-4 and b > g.runaway_dcm_error for a, b in zip(errs, errs[1:]))
+    assert raw_grows > 5  # the tick-to-tick comparison would have stepped at once
+    rule = LiftoffRule(g)
+    for e in errs:
+        rule.update(e, DT)
+        assert not rule.running_away()
+
+
+def test_a_real_runaway_is_caught_within_a_few_ticks():
+    """An error that grows at 0.2 m/s from 6 cm (a push) is a runaway within 60 ms, with or
+    without the noise."""
+    g = _gait()
+    for sigma in (0.0, 0.005):
+        rng = np.random.default_rng(3)
+        rule = LiftoffRule(g)
+        for k in range(10):  # the shift first holds the error at 6 cm
+            rule.update(0.06 + sigma * rng.standard_normal(), DT)
+        caught = None
+        for k in range(40):
+            rule.update(0.06 + 0.2 * k * DT + sigma * rng.standard_normal(), DT)
+            if rule.running_away():
+                caught = k * DT
+                break
+        assert caught is not None and caught <= 0.06, (sigma, caught)
+
+
+def test_extension_ends_when_the_error_is_small_or_stops_falling():
+    g = _gait()
+    rule = LiftoffRule(g)
+    for e in (0.08, 0.07, 0.06):
+        rule.update(e, DT)
+    assert not rule.done(0.1, 0.1)  # still falling, still large: extend
+    for _ in range(100):
+        rule.update(0.06, DT)
+    assert rule.done(0.2, 0.1)  # no longer falling
+    rule.reset()
+    rule.update(0.01, DT)
+    assert rule.done(0.1, 0.1)  # within the tolerance
+    rule.reset()
+    rule.update(0.08, DT)
+    assert rule.done(0.1 + g.max_shift_extension, 0.1)  # the extension's cap
+
+
+def _walk_steps(corr: SpeedCorrection, command_at, v_W, steps: int, t0: float = 0.0):
+    """Ticks and touchdowns of ``steps`` steps at the CoM velocity ``v_W`` (W, heading 0)."""
+    g = corr.gait
+    period = g.step_period
+    t, com = t0, np.zeros(2)
+    corr.reset(t, com)
+    for _ in range(steps):
+        for _ in range(int(round(period / DT))):
+            t += DT
+            com = com + DT * np.asarray(v_W)
+            target = command_at(t)
+            corr.observe_command(t, target, target)
+        corr.touchdown(t, com, np.asarray(command_at(t)), 0.0)
+    return corr.value
+
+
+def test_a_heading_loop_does_not_hold_the_lateral_correction():
+    """An agent trims vx and the yaw rate at every tick (small changes): a sideways drift of
+    5 cm/s is still corrected (the correction steers left, against it)."""
+    def trimmed(t):
+        return [0.2 + 0.005 * math.sin(40 * t), 0.0, 0.05 * math.sin(25 * t)]
+    value = _walk_steps(SpeedCorrection(_gait()), trimmed, [0.2, -0.05], 8)
+    assert value[1] > 0.05
+
+
+def test_a_real_command_change_holds_the_correction():
+    """While the linear command moves by more than speed_hold_change per step the correction
+    does not integrate the (expected) speed error."""
+    g = _gait()
+    def ramp(t):
+        return [0.1 + 0.2 * t, 0.0, 0.0]  # 0.2 m/s^2: a new command every step
+    value = _walk_steps(SpeedCorrection(g), ramp, [0.0, -0.05], 6)
+    assert np.all(value == 0.0)
+
+
+def test_a_learnt_correction_fades_when_the_command_changes():
+    """A correction learnt on a steady walk (drift to the right) shrinks, step by step, once
+    the agent's command really changes (an approach's small, varying steps)."""
+    g = _gait()
+    corr = SpeedCorrection(g)
+    learnt = _walk_steps(corr, lambda t: [0.2, 0.0, 0.0], [0.2, -0.05], 8).copy()
+    assert learnt[1] > 0.05
+
+    def approach(t):  # a P-law on a swaying base: vy between -0.02 and -0.10 m/s
+        return [0.0, -0.06 + 0.04 * math.sin(14 * t), 0.0]
+    t, com = 8 * g.step_period, np.zeros(2)
+    for _ in range(4):
+        for _ in range(int(round(g.step_period / DT))):
+            t += DT
+            corr.observe_command(t, approach(t), approach(t))
+        corr.touchdown(t, com, np.asarray(approach(t)), 0.0)
+    assert abs(corr.value[1]) <= learnt[1] * g.speed_hold_decay ** 3 + 1e-12
