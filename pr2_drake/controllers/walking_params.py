@@ -95,8 +95,8 @@ class GaitParams:
     min_remaining_swing: float = 0.08  # [s] ... but never lands sooner than this from now
     min_double_support: float = 0.04  # [s] double support ends this early if the DCM ...
     runaway_dcm_error: float = 0.05  # [m] ... is this far from its target and moving away
-    runaway_dcm_growth: float = 0.005  # [m] moving away: this much over its smallest error
-    dcm_error_filter: float = 0.02  # [s] low-pass of the DCM error in these rules (noise)
+    runaway_dcm_growth: float = 0.004  # [m] moving away: this much over its smallest error
+    dcm_error_filter: float = 0.012  # [s] low-pass of the DCM error in these rules (noise)
     retarget_speed: float = 3.0  # [m/s] fastest motion of the swing target
     dcm_freeze_phase: float = 0.8  # the swing target stops moving after this swing progress
     zmp_qy: float = 1.0  # ZmpPlanner weights: ZMP error and CoM acceleration

@@ -195,11 +195,8 @@ class GaitPlanner:
             self.swing.advance(t)
             progress = self.swing.progress
             # Swing sole height above the stance sole, or above its target on known terrain.
-            # Against the stance sole measured now (an error of the base estimate moves
-            # both soles alike and cancels), not against its height at touchdown.
-            z_shift = m.sole_pose(self.stance).translation()[2] - self.footholds[self.stance][2]
             z_ref = (self.swing.target[2] if self.terrain.known_heights
-                     else self.footholds[self.stance][2]) + z_shift
+                     else self.footholds[self.stance][2])
             heights = m.contact_heights(swing_side) - z_ref
             blocked = (g.blocked_touchdown_error > 0 and progress >= g.early_touchdown_phase
                        and self.swing_z_error > g.blocked_touchdown_error

@@ -14,7 +14,7 @@ velocity, divided by omega ~ 4.4 /s): from one 4 ms tick to the next it jitters 
 the shift moves it. Compared tick to tick, a noisy error "grows" half of the time, so a
 tick-to-tick runaway rule fires at the first chance and every double support shrinks to its
 minimum (task 1 then left its road). The runaway rule therefore uses the error low-passed
-with time constant ``dcm_error_filter`` [s], and "moving away" means exceeding the smallest
+with time constant ``dcm_error_filter`` [s] (12 ms), and "moving away" means exceeding the smallest
 filtered error of this shift by ``runaway_dcm_growth`` [m]; with a noise-free measurement it
 fires a few ticks later than a tick-to-tick comparison. The extension stays tick to tick on
 the raw error: noise only ends it sooner (at the planned duration), while a lagging filtered
