@@ -23,7 +23,7 @@ FIRST_ITEMS = {
     3: ("MovingBarAgent", 0, "jump_over", 5.0),
     4: ("SlopeAgent", 0, "task_region", 7.0),
     5: ("StepsButtonAgent", 8, "onto_step", 8.0),
-    6: ("ObjectSearchAgent", 9, "pick_region", 24.0),
+    6: ("ObjectSearchAgent", 7, "pick_region", 26.0),
 }
 
 
