@@ -9,9 +9,11 @@ speed the footstep planner is given (clipped to ``speed_correction_max`` [m/s]).
 The integration holds while the linear command really changes (a ramp of the acceleration
 limit, or a change beyond ``speed_hold_change`` [m/s] since the step began), so that a new
 command is not fought as an error (wind-up), and the correction then shrinks by the factor
-``speed_hold_decay`` per step: it was learnt for another command. An agent's small per-tick adjustments (a heading
-loop trims vx and the yaw rate at every tick) do not hold it: with them held, a bias was never
-corrected and the robot left a road sideways.
+``speed_hold_decay`` per step: it was learnt for another command. Sideways, an agent's small
+per-tick adjustments (a heading loop trims vx and the yaw rate at every tick) do not hold it:
+with them held, a bias was never corrected and the robot left a road sideways. Forward, a step
+counts only when the command did not change at all during it (a faster forward correction
+on rough ground sped the robot into stumbles).
 """
 
 from __future__ import annotations
