@@ -101,7 +101,6 @@ class GaitPlanner:
         self._step_over = False  # the swing is a high one the footstep planner asked for
         self.heading: float | None = None
         self.t_last: float | None = None
-        self._dt = 0.0
         self.t_touchdown = -np.inf
         self.command = np.zeros(3)
         self.z_target: float | None = None
@@ -135,7 +134,6 @@ class GaitPlanner:
             self.reset()  # the simulation restarted
         dt = 0.0 if self.t_last is None else t - self.t_last
         self.t_last = t
-        self._dt = dt
         # The command used is rate-limited (acceleration limits), except that stopping the
         # walking (all zero) is immediate.
         lim = p.limits
@@ -164,10 +162,10 @@ class GaitPlanner:
             self.footholds = [self._sole_pose4(0), self._sole_pose4(1)]
         self.footsteps.observe(self.footholds)
 
-        self._step_state_machine(t, com, comd)
+        self._step_state_machine(t, dt, com, comd)
         return self._fill_plan(t, dt, com, comd)
 
-    def _step_state_machine(self, t: float, com, comd) -> None:
+    def _step_state_machine(self, t: float, dt: float, com, comd) -> None:
         g = self.params.gait
         m = self.model
         if self.phase == Phase.STAND or self.phase == Phase.STOP:
@@ -183,7 +181,7 @@ class GaitPlanner:
             elapsed = t - self.t_phase
             omega = math.sqrt(self.gravity / g.com_height)
             d = com[:2] + comd[:2] / omega - self.start_dcm[2]
-            self.liftoff.update(math.sqrt(d.dot(d)), self._dt)
+            self.liftoff.update(math.sqrt(d.dot(d)), dt)
             if (elapsed >= min(self.phase_duration, g.min_double_support) - 1e-9
                     and self.liftoff.running_away()):
                 self._lift_off(t, com, comd)  # the DCM runs away: step now
