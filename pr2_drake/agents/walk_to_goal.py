@@ -44,6 +44,7 @@ class GoalPlannerParams(Params):
     turn_in_place_angle: float = 0.6
     lateral_gain: float = 0.0
     max_lateral_speed: float = 0.08
+    lookahead: float = 0.0  # [m] > 0: steer along the line from the start (pure pursuit)
 
 
 
@@ -53,14 +54,36 @@ def yaw_from_quaternion(q_wxyz: np.ndarray) -> float:
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
+def pursuit_point(p_WB: np.ndarray, p_start: np.ndarray, p_goal: np.ndarray,
+                  lookahead: float) -> np.ndarray:
+    """The point [m] ``lookahead`` along the line from ``p_start`` to ``p_goal`` (xy, W) beyond
+    the base's projection onto it; the goal itself once that passes the goal."""
+    a, b = np.asarray(p_start[:2], float), np.asarray(p_goal[:2], float)
+    u = b - a
+    length = math.hypot(*u)
+    if length < 1e-9:
+        return b
+    u = u / length
+    s = float(np.dot(np.asarray(p_WB[:2], float) - a, u)) + lookahead
+    return b if s >= length else a + max(s, 0.0) * u
+
+
 def goal_velocity(p_WB: np.ndarray, yaw: float, p_goal: np.ndarray,
-                  params: GoalPlannerParams) -> np.ndarray:
-    """[vx, vy, yaw_rate] in the heading frame that takes the base at p_WB towards p_goal."""
+                  params: GoalPlannerParams, p_start: np.ndarray | None = None) -> np.ndarray:
+    """[vx, vy, yaw_rate] in the heading frame that takes the base at p_WB towards p_goal.
+
+    With ``params.lookahead`` > 0 and a start ``p_start``, the body points at the pursuit point
+    on the line from the start to the goal (:func:`pursuit_point`), so that a base that drifted
+    off that line walks back to it within about a lookahead; the speed still follows the
+    distance to the goal."""
     d = np.asarray(p_goal[:2], float) - np.asarray(p_WB[:2], float)
     dist = float(np.hypot(*d))
     if dist < params.stop_radius:
         return np.zeros(3)
-    error = math.atan2(d[1], d[0]) - yaw
+    aim = d
+    if params.lookahead > 0.0 and p_start is not None:
+        aim = pursuit_point(p_WB, p_start, p_goal, params.lookahead) - np.asarray(p_WB[:2], float)
+    error = math.atan2(aim[1], aim[0]) - yaw
     error = math.atan2(math.sin(error), math.cos(error))
     # (min/max: np.clip's values for these nonzero bounds, without its call overhead)
     yaw_rate = min(max(params.yaw_gain * error, -params.max_yaw_rate), params.max_yaw_rate)
@@ -75,9 +98,16 @@ def goal_velocity(p_WB: np.ndarray, yaw: float, p_goal: np.ndarray,
 
 
 class GoalVelocityPlanner(LeafSystem):
-    """``body_state`` in, ``velocity_command`` (vx, vy, yaw rate) out, towards ``goal`` (x, y)."""
+    """``body_state`` in, ``velocity_command`` (vx, vy, yaw rate) out, towards ``goal`` (x, y).
+
+    With ``params.lookahead`` > 0 it steers along the line from where the base stood at the
+    start (discrete state: [latched, x, y], latched at initialisation or at the first check,
+    every ``LATCH_PERIOD``, that sees a valid body_state) to the goal."""
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
+    #: [s] how often the start is checked for until it is latched.
+    LATCH_PERIOD = 0.05
 
     def __init__(self, goal, params: GoalPlannerParams | None = None):
         super().__init__()
@@ -86,12 +116,34 @@ class GoalVelocityPlanner(LeafSystem):
             raise ValueError(f"GoalVelocityPlanner: goal must be finite (x, y), got {goal}")
         self.params = params or GoalPlannerParams()
         self._body = self.DeclareVectorInputPort("body_state", BODY_STATE_SIZE)
-        self.DeclareVectorOutputPort("velocity_command", 3, weak_calc(self._calc))
+        self._start = None
+        prerequisites = {self.all_input_ports_ticket()}
+        if self.params.lookahead > 0.0:
+            self._start = self.DeclareDiscreteState(3)
+            self.DeclareInitializationDiscreteUpdateEvent(self._latch)
+            self.DeclarePeriodicDiscreteUpdateEvent(self.LATCH_PERIOD, 0.0, self._latch)
+            prerequisites.add(self.discrete_state_ticket(self._start))
+        self.DeclareVectorOutputPort("velocity_command", 3, weak_calc(self._calc),
+                                     prerequisites_of_calc=prerequisites)
+
+    def _latch(self, context, discrete_state) -> None:
+        start = discrete_state.get_mutable_vector(self._start)
+        if start[0] > 0.5:
+            return
+        x = self._body.Eval(context)
+        if np.all(np.isfinite(x)) and float(np.dot(x[QUAT_WB], x[QUAT_WB])) > 0.5:
+            start.SetFromVector([1.0, float(x[P_WB][0]), float(x[P_WB][1])])
 
     def _calc(self, context, output: BasicVector) -> None:
         x = self._body.Eval(context)
+        p_start = None
+        if self._start is not None:
+            start = context.get_discrete_state(self._start).get_value()
+            if start[0] > 0.5:
+                p_start = start[1:]
         output.SetFromVector(
-            goal_velocity(x[P_WB], yaw_from_quaternion(x[QUAT_WB]), self.goal, self.params)
+            goal_velocity(x[P_WB], yaw_from_quaternion(x[QUAT_WB]), self.goal, self.params,
+                          p_start)
         )
 
 

@@ -38,6 +38,7 @@ import math
 import numpy as np
 
 from pr2_drake.controllers.frames import rot2, rot_y, rot_z, wrap, yaw_of
+from pr2_drake.controllers.planning.com_bias import ComBiasEstimator
 from pr2_drake.controllers.planning.com_plan import ComPlanner, zmp_point
 from pr2_drake.controllers.planning.liftoff import LiftoffRule
 from pr2_drake.controllers.planning.speed_correction import SpeedCorrection
@@ -86,6 +87,7 @@ class GaitPlanner:
         self.plan = WholeBodyPlan()
         self.speed_correction = SpeedCorrection(params.gait)
         self.liftoff = LiftoffRule(params.gait)
+        self.com_bias = ComBiasEstimator(params.gait)
         self.reset()
 
     # ---- state -------------------------------------------------------------------------------
@@ -105,6 +107,8 @@ class GaitPlanner:
         self.command = np.zeros(3)
         self.z_target: float | None = None
         self.speed_correction.reset(-np.inf, np.zeros(2))
+        self.com_bias.reset()
+        self._yaw = 0.0
         self.com_offset = None
         self._pelvis_yaw: float | None = None
         self._pelvis_R = None
@@ -150,6 +154,8 @@ class GaitPlanner:
 
         R_WB = m.base_rotation()
         pelvis_yaw = yaw_of(R_WB)
+        self._yaw = pelvis_yaw
+        com = self.com_bias.shifted(com, pelvis_yaw)  # the real CoM, as far as it is known
         if self.heading is None:
             self.heading = pelvis_yaw
         # Integrate the yaw-rate command, but stop while the heading leads the pelvis by more
@@ -226,7 +232,7 @@ class GaitPlanner:
         elif self.phase in (Phase.START, Phase.DOUBLE):
             a_xy = self._shift_comdd(t, com, comd)
         elif self.phase == Phase.SINGLE:
-            a_xy = self._single_comdd(t, com, comd)
+            a_xy = self._single_comdd(t, dt, com, comd)
         else:
             a_xy = self.com_planner.comdd(t, com[:2], comd[:2])
         # CoM height: standing height at rest, the (lower) LIPM height when walking; the target
@@ -407,7 +413,7 @@ class GaitPlanner:
         zx, zy = np.dot(R, z_H).tolist()
         return np.array([w2 * (com_xy[0] - zx), w2 * (com_xy[1] - zy)])
 
-    def _single_comdd(self, t: float, com, comd) -> np.ndarray:
+    def _single_comdd(self, t: float, dt: float, com, comd) -> np.ndarray:
         """CoM acceleration (xy) in single support: LIPM about a ZMP on the stance sole.
 
         The ZMP sits at the sole centre plus an ankle correction along the sole (the only
@@ -425,6 +431,7 @@ class GaitPlanner:
         xr, yr = px + (sx - px) * growth, py + (sy - py) * growth
         ca, sa = math.cos(foot[3]), math.sin(foot[3])
         xi_err = np.array([cx + float(comd[0]) / omega - xr, cy + float(comd[1]) / omega - yr])
+        self.com_bias.observe(xi_err, self._yaw, dt)
         dx = (1.0 + g.ankle_dcm_gain / omega) * float(np.dot(np.array([ca, sa]), xi_err))
         lim = g.ankle_zmp_range
         d = min(max(dx, -lim), lim)
