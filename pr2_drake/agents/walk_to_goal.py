@@ -10,7 +10,9 @@ observation (``body_state``, ``joint_state``) and the task's ``goal_center`` pri
 Task reference agents (the defaults of ``pr2-drake run --task 1`` and ``--task 4``):
 
 - :class:`RockyRoadAgent` (task 1): unknown stones: swing soles aim below the stance sole and
-  touch down when their descent is blocked (contact inferred from kinematics), slower walking
+  touch down when their descent is blocked (contact inferred from kinematics), slower walking,
+  steering along the line from its start to the goal (pure pursuit: a robot pushed or drifted
+  sideways walks back to the line instead of on towards the goal from where it is)
   (params/controllers/walking_rough.yaml, params/agents/goal_planner_rough.yaml).
 - :class:`SlopeAgent` (task 4): footholds on the incline from the ``slope_angle_deg`` prior and
   the measured pitch of the stance sole, capped at the goal height; soles land pitched like the
