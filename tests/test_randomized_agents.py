@@ -22,7 +22,7 @@ FIRST_ITEMS = {
     2: ("ValveAgent", 0, "task_region", 6.0),
     3: ("MovingBarAgent", 0, "jump_over", 5.0),
     4: ("SlopeAgent", 0, "task_region", 7.0),
-    5: ("StepsButtonAgent", 8, "onto_step", 8.0),
+    5: ("StepsButtonAgent", 3, "onto_step", 8.0),
     6: ("ObjectSearchAgent", 7, "pick_region", 26.0),
 }
 
