@@ -14,6 +14,7 @@ from pr2_drake.controllers.planning.com_bias import ComBiasEstimator
 from pr2_drake.controllers.walking_params import WalkingParams
 
 DT = 0.004  # [s] the controller's tick
+ROUGH = "params/controllers/walking_rough.yaml"  # task 1's overrides: the estimate on
 
 
 def _gait(**changes):
@@ -71,13 +72,15 @@ def test_off_means_off():
 
 
 def _walk_with_offset(offset_y: float, seconds: float = 15.0):
-    """Walk straight ahead at 0.2 m/s for ``seconds`` on a robot whose base CoM is
-    ``offset_y`` [m] to the left of the model's. Returns (the estimate's y [m], the whole
+    """Walk straight ahead at 0.2 m/s on flat ground, with task 1's estimate rate, for
+    ``seconds`` on a robot whose base CoM is ``offset_y`` [m] to the left of the model's. Returns (the estimate's y [m], the whole
     robot's CoM offset that makes [m], whether it stayed upright)."""
     from pr2_drake.bench.rigs import WalkingSim
     from pr2_drake.randomize import _scaled_inertia
 
-    sim = WalkingSim(WalkingParams.load())
+    rate = WalkingParams.load(overrides=[ROUGH]).gait.com_bias_rate  # task 1's estimate
+    params = WalkingParams.load()
+    sim = WalkingSim(replace(params, gait=replace(params.gait, com_bias_rate=rate)))
     sim.base.SetSpatialInertiaInBodyFrame(
         sim.plant_context, _scaled_inertia(sim.base, 1.0, [0.0, offset_y, 0.0]))
     shift = offset_y * sim.base.default_mass() / sim.plant.CalcTotalMass(sim.plant_context)

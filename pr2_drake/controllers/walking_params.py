@@ -91,7 +91,7 @@ class GaitParams:
     speed_correction_max: float = 0.15  # [m/s]
     speed_hold_change: float = 0.03  # [m/s] a linear command change that holds it
     speed_hold_decay: float = 0.5  # ... and shrinks it by this factor per step
-    com_bias_rate: float = 0.25  # [1/s] CoM offset estimate from the single-support DCM error
+    com_bias_rate: float = 0.0  # [1/s] CoM offset estimate from the single-support DCM error
     com_bias_error_max: float = 0.01  # [m] ... each tick's error clipped to this
     com_bias_max: float = 0.03  # [m] ... the estimate within this, per axis (com_bias.py)
     com_bias_axes: str = "y"  # ... on these axes of the pelvis' yaw frame ("xy", "y")
