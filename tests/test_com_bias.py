@@ -64,6 +64,14 @@ def test_the_offset_is_in_the_pelvis_yaw_frame():
     assert est.shifted(com, 0.0) is not com  # the caller's array is not changed
 
 
+def test_bad_settings_are_refused():
+    for bad in (dict(com_bias_axes="z"), dict(com_bias_rate=-1.0), dict(com_bias_max=-0.01)):
+        params = WalkingParams.load()
+        params = replace(params, gait=replace(params.gait, **bad))
+        with pytest.raises(ValueError, match="com_bias"):
+            params.check()
+
+
 def test_off_means_off():
     est = ComBiasEstimator(_gait(com_bias_rate=0.0))
     est.observe(np.array([0.1, 0.1]), 0.0, DT)

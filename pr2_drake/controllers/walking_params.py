@@ -223,3 +223,9 @@ class WalkingParams(Params):
             raise ValueError("gait.recovery_min_step_width must be in (0, min_step_width]")
         if g.min_step_width > g.step_width:
             raise ValueError("gait.min_step_width must not exceed gait.step_width")
+        if g.com_bias_axes not in ("x", "y", "xy"):
+            raise ValueError(f"gait.com_bias_axes must be 'x', 'y' or 'xy', got "
+                             f"{g.com_bias_axes!r}")
+        if min(g.com_bias_rate, g.com_bias_error_max, g.com_bias_max) < 0:
+            raise ValueError("gait.com_bias_rate, com_bias_error_max and com_bias_max must be "
+                             ">= 0")
