@@ -40,6 +40,11 @@ class ComBiasEstimator:
                      1.0 if "y" in gait.com_bias_axes else 0.0)
         self.reset()
 
+    @property
+    def enabled(self) -> bool:
+        """Whether the estimate learns (``com_bias_rate`` > 0)."""
+        return self.gait.com_bias_rate > 0.0
+
     def reset(self) -> None:
         self.x = 0.0
         self.y = 0.0

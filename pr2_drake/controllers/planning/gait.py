@@ -108,7 +108,6 @@ class GaitPlanner:
         self.z_target: float | None = None
         self.speed_correction.reset(-np.inf, np.zeros(2))
         self.com_bias.reset()
-        self._yaw = 0.0
         self.com_offset = None
         self._pelvis_yaw: float | None = None
         self._pelvis_R = None
@@ -154,7 +153,6 @@ class GaitPlanner:
 
         R_WB = m.base_rotation()
         pelvis_yaw = yaw_of(R_WB)
-        self._yaw = pelvis_yaw
         com = self.com_bias.shifted(com, pelvis_yaw)  # the real CoM, as far as it is known
         if self.heading is None:
             self.heading = pelvis_yaw
@@ -431,7 +429,8 @@ class GaitPlanner:
         xr, yr = px + (sx - px) * growth, py + (sy - py) * growth
         ca, sa = math.cos(foot[3]), math.sin(foot[3])
         xi_err = np.array([cx + float(comd[0]) / omega - xr, cy + float(comd[1]) / omega - yr])
-        self.com_bias.observe(xi_err, self._yaw, dt)
+        if self.com_bias.enabled:
+            self.com_bias.observe(xi_err, yaw_of(self.model.base_rotation()), dt)
         dx = (1.0 + g.ankle_dcm_gain / omega) * float(np.dot(np.array([ca, sa]), xi_err))
         lim = g.ankle_zmp_range
         d = min(max(dx, -lim), lim)
