@@ -2,7 +2,7 @@
 
     pr2-drake bench speed [--baseline REF | --no-baseline] [--repeats 3]
                           [--workloads walking,1,2,3,4,5,6] [--seed 0] [--seconds S]
-                          [--split] [--json PATH]
+                          [--split] [--instructions] [--json PATH]
 
 Workloads: ``walking`` (flat ground, the WalkingController at 0.3 m/s with the arm posture,
 10 s, or ``--seconds``) and task ids (the task's default agent, ``run_episode`` on
@@ -24,6 +24,15 @@ simulated second of each part: plant (AdvanceTo's own C++ time: the plant step, 
 Drake's framework), controller planner, tracking rows, QP, controller glue, agent, testbed
 Python (actuation, grasp, sleep, referee, loop), camera (:data:`speed_worker.PARTS`);
 cProfile inflates the Python parts, so compare splits with splits. ``--json`` writes every run.
+
+``--instructions`` counts instead of timing: each side runs once per workload under valgrind's
+callgrind, instrumented only inside the simulation loop, and the table gives the instructions
+per simulated second and their ratio (baseline over this code). The count does not change
+with the machine's load, so it compares two versions on a shared or noisy machine where
+wall-clock ratios move by tens of percent between rounds; it does not weigh memory stalls
+(a cache miss counts as one instruction), so state speed-ups in time where the machine allows.
+Callgrind runs the code some 50 times slower: the first ``--seconds`` (default
+:data:`INSTRUCTION_SECONDS`) of each workload. Needs ``valgrind`` (Debian package).
 
 The interface (options, printed columns, JSON keys ``runs``, ``summary``) is what other
 branches report their figures with; keep it stable.
@@ -47,6 +56,9 @@ from pr2_drake.bench.speed_worker import PART_NAMES, PARTS
 #: The code before issue 27's speed work: the default "before".
 BASELINE_REF = "e4c1cc1"
 WORKLOADS = ("walking", "1", "2", "3", "4", "5", "6")
+#: [s] simulated per workload with ``--instructions`` unless ``--seconds`` says otherwise
+#: (callgrind runs the code some 50 times slower).
+INSTRUCTION_SECONDS = 4.0
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -68,8 +80,9 @@ def checkout(ref: str, into: Path) -> None:
 
 
 def run_worker(root: Path, workload: str, seed: int, seconds: float | None,
-               profile: bool = False) -> dict:
-    """One fresh process running ``workload`` on the package under ``root``."""
+               profile: bool = False, instructions: bool = False) -> dict:
+    """One fresh process running ``workload`` on the package under ``root``; with
+    ``instructions``, under callgrind, adding ``instructions`` (of the simulation loop)."""
     args = [workload, "--seed", str(seed)]
     if seconds is not None:
         args += ["--seconds", repr(seconds)]
@@ -78,13 +91,41 @@ def run_worker(root: Path, workload: str, seed: int, seconds: float | None,
     code = ("import runpy, sys; sys.argv = ['speed_worker', *sys.argv[1:]]; "
             f"runpy.run_path({str(Path(speed_worker.__file__))!r}, run_name='__main__')")
     env = dict(os.environ, PYTHONPATH=str(root))
-    out = subprocess.run([sys.executable, "-c", code, *args], cwd=root, env=env,
-                         capture_output=True, text=True)
-    lines = [ln for ln in out.stdout.splitlines() if ln.startswith("SPEED ")]
-    if out.returncode or not lines:
-        tail = " | ".join(out.stderr.strip().splitlines()[-3:])
-        raise BenchError(f"{workload} under {root} failed (exit {out.returncode}): {tail}")
-    return json.loads(lines[-1][len("SPEED "):])
+    cmd = [sys.executable, "-c", code, *args]
+    with tempfile.TemporaryDirectory(prefix="pr2_speed_cg_") as tmp:
+        counts = Path(tmp) / "callgrind.out"
+        if instructions:
+            cmd = ["valgrind", "--tool=callgrind", "--instr-atstart=no",
+                   f"--callgrind-out-file={counts}", *cmd, "--callgrind"]
+        out = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True)
+        lines = [ln for ln in out.stdout.splitlines() if ln.startswith("SPEED ")]
+        if out.returncode or not lines:
+            tail = " | ".join(out.stderr.strip().splitlines()[-3:])
+            raise BenchError(f"{workload} under {root} failed (exit {out.returncode}): {tail}")
+        result = json.loads(lines[-1][len("SPEED "):])
+        if instructions:
+            result["instructions"] = callgrind_total(counts)
+    return result
+
+
+def callgrind_total(path: Path) -> int:
+    """The instruction count (Ir) of a callgrind output file: its ``totals:`` line (with
+    the instrumentation switched on and off, ``summary:`` counts only the last span)."""
+    try:
+        for line in path.read_text(errors="replace").splitlines():
+            if line.startswith("totals:"):
+                return int(line.split()[1])
+    except (OSError, ValueError, IndexError):
+        pass
+    raise BenchError(f"no instruction count in {path}")
+
+
+def check_valgrind() -> None:
+    """BenchError unless valgrind and callgrind_control are on the PATH."""
+    missing = [t for t in ("valgrind", "callgrind_control") if shutil.which(t) is None]
+    if missing:
+        raise BenchError(f"--instructions needs {' and '.join(missing)} (Debian: apt-get "
+                         "install valgrind)")
 
 
 def load1() -> float:
@@ -131,6 +172,38 @@ def measure(sides: dict[str, Path], workloads: list[str], a) -> dict:
             print(f"  round {r + 1}/{a.repeats} {w}: " + ", ".join(
                 f"{s} {runs[w][s][-1]['rtf']:.2f}" for s in order), flush=True)
     return dict(runs=runs, loads=loads)
+
+
+def measure_instructions(sides: dict[str, Path], workloads: list[str], a) -> dict:
+    """One run per side and workload under callgrind: {workload: {side: result}}."""
+    out = {}
+    for w in workloads:
+        out[w] = {}
+        for side, root in sides.items():
+            out[w][side] = run_worker(root, w, a.seed, a.seconds, instructions=True)
+            r = out[w][side]
+            print(f"  {w}: {side} {r['instructions'] / r['sim_time'] / 1e9:.3f} G "
+                  f"instructions per simulated s", flush=True)
+    return out
+
+
+def print_instructions(runs: dict, sides: list[str], a) -> dict:
+    """The table of instruction counts per simulated second; returns the summary."""
+    two = len(sides) == 2
+    print(f"{'workload':18s} " + " ".join(f"{s + ' [G/sim s]':>22s}" for s in sides)
+          + ("   ratio" if two else "") + "   outcome " + " | ".join(sides))
+    summary = {}
+    for w, by_side in runs.items():
+        per = {s: by_side[s]["instructions"] / by_side[s]["sim_time"] for s in sides}
+        row = {s: dict(instructions_per_sim=per[s], outcome=_outcome(by_side[s]))
+               for s in sides}
+        line = f"{_label(w, a):18s} " + " ".join(f"{per[s] / 1e9:22.3f}" for s in sides)
+        if two:
+            row["ratio"] = per[sides[1]] / per[sides[0]]
+            line += f"  {row['ratio']:5.2f}x"
+        print(line + "   " + " | ".join(row[s]["outcome"] for s in sides))
+        summary[w] = row
+    return summary
 
 
 def summarize(runs: dict, loads: dict, sides: list[str]) -> dict:
@@ -203,6 +276,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seconds", type=float, default=None,
                    help="simulated seconds (default: walking 10, tasks until they end)")
     p.add_argument("--split", action="store_true", help="add the profiled time split")
+    p.add_argument("--instructions", action="store_true",
+                   help="count instructions under callgrind instead of timing (one run per "
+                        f"side; --seconds default {INSTRUCTION_SECONDS:g}): the same on a busy "
+                        "machine")
     p.add_argument("--json", default=None, help="write every run and the summary here")
     a = p.parse_args(argv)
     try:
@@ -222,6 +299,10 @@ def _run(a) -> int:
         raise BenchError(f"--repeats must be at least 1, got {a.repeats}")
     if a.seconds is not None and not a.seconds > 0:
         raise BenchError(f"--seconds must be positive, got {a.seconds}")
+    if a.instructions:
+        check_valgrind()
+        if a.seconds is None:
+            a.seconds = INSTRUCTION_SECONDS
     tmp = None if a.no_baseline else Path(tempfile.mkdtemp(prefix="pr2_speed_baseline_"))
     try:
         sides = {"this": ROOT}
@@ -229,6 +310,17 @@ def _run(a) -> int:
             checkout(a.baseline, tmp)
             sides[a.baseline] = tmp
         names = list(sides)
+        if a.instructions:
+            print(f"bench speed --instructions: this code ({describe_here()}, {ROOT})"
+                  + (f" against {a.baseline}" if tmp is not None else "")
+                  + f"; the first {a.seconds:g} s simulated, under callgrind; {machine()}",
+                  flush=True)
+            runs = measure_instructions(sides, workloads, a)
+            summary = print_instructions(runs, names, a)
+            if a.json:
+                Path(a.json).write_text(json.dumps(dict(sides=names, runs=runs,
+                                                        summary=summary), indent=1))
+            return 0
         print(f"bench speed: this code ({describe_here()}, {ROOT})"
               + (f" against {a.baseline}" if tmp is not None else "")
               + f"; {a.repeats} run(s) each, interleaved, fresh processes; {machine()}",

@@ -14,6 +14,9 @@ JSON object: ``sim_time`` [s], ``wall`` [s] and ``cpu`` [s] of the simulation lo
 CPU time of every thread of the process), ``rtf`` (sim_time / wall), ``cpu_per_sim``,
 ``score``, ``max_score``, ``termination`` (tasks), and with ``--profile`` (cProfile: slower,
 so not timed) ``split``: profiled seconds per simulated second by part (:data:`PARTS`).
+``--callgrind`` (the worker runs under ``valgrind --tool=callgrind --instr-atstart=no``)
+switches the instrumentation on for the simulation loop only (``callgrind_control``), so the
+instruction count of the callgrind output is that of the loop.
 """
 
 from __future__ import annotations
@@ -21,7 +24,9 @@ from __future__ import annotations
 import argparse
 import cProfile
 import json
+import os
 import pstats
+import subprocess
 import time
 
 #: The parts of the split, in print order.
@@ -108,13 +113,19 @@ def split_profile(stats: pstats.Stats) -> dict[str, float]:
 
 
 class _Clock:
-    """Wall and CPU time of the simulation loop, and the profiler (if any) running only
-    inside it."""
+    """Wall and CPU time of the simulation loop, and the profiler (if any) or callgrind's
+    instrumentation (``callgrind``) running only inside it."""
 
-    def __init__(self, prof: cProfile.Profile | None):
-        self.prof, self.marks = prof, {}
+    def __init__(self, prof: cProfile.Profile | None, callgrind: bool = False):
+        self.prof, self.callgrind, self.marks = prof, callgrind, {}
+
+    def _instrument(self, state: str) -> None:
+        if self.callgrind:
+            subprocess.run(["callgrind_control", "-i", state, str(os.getpid())], check=True,
+                           capture_output=True)
 
     def start(self) -> None:
+        self._instrument("on")
         self.marks["cpu0"], self.marks["wall0"] = time.process_time(), time.perf_counter()
         if self.prof is not None:
             self.prof.enable()
@@ -123,6 +134,7 @@ class _Clock:
         if self.prof is not None:
             self.prof.disable()
         self.marks["cpu1"], self.marks["wall1"] = time.process_time(), time.perf_counter()
+        self._instrument("off")
 
     def times(self) -> dict[str, float]:
         m = self.marks
@@ -174,9 +186,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--seconds", type=float, default=None)
     p.add_argument("--profile", action="store_true")
+    p.add_argument("--callgrind", action="store_true")
     a = p.parse_args(argv)
     prof = cProfile.Profile() if a.profile else None
-    clock = _Clock(prof)
+    clock = _Clock(prof, a.callgrind)
     if a.workload == "walking":
         result = _walking(a.seconds or 10.0, clock)
     else:
