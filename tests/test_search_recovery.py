@@ -121,6 +121,24 @@ def test_a_place_approach_drifting_along_the_table_settles_with_the_object_over_
     assert tab.contains(o, -seq.p.place_margin)
 
 
+def test_a_place_approach_stalled_past_the_table_end_turns_the_object_over_the_top():
+    seq, ctx, sim = placing()
+    x, y, yaw = seq.memory(ctx).goal
+    hold(seq, ctx, x - 0.55, y, yaw)  # the object 0.55 m along: past the top's margin
+    assert not seq._object_over_top(seq.memory(ctx), np.array([x - 0.55, y]), yaw)
+    sim.AdvanceTo(seq.p.approach_stall_time + 0.3)
+    m = seq.memory(ctx)
+    assert m.stage == Stage.APPROACH_TABLE and m.approach_tries == 1, m.log[-3:]
+    assert "turn to" in " ".join(m.log[-3:])
+    turned = m.goal[2]
+    assert np.allclose(m.goal[:2], [x - 0.55, y]) and abs(turned - yaw) > math.radians(5)
+    assert seq._object_over_top(m, m.goal[:2], turned)
+    hold(seq, ctx, x - 0.55, y, turned)  # it turned on the spot: placed from there
+    t = sim.get_context().get_time()
+    sim.AdvanceTo(t + 0.1)
+    assert seq.memory(ctx).stage == Stage.SETTLE_TABLE
+
+
 def test_a_place_approach_off_the_table_carries_again_then_fails_after_its_retries():
     seq, ctx, sim = placing()
     p = seq.p

@@ -54,8 +54,9 @@ Stages (``stage`` output):
 Recovery (:mod:`.recovery`, issue 29): an approach whose distance to its pose stops shrinking
 (``approach_stall_time``; a gait that drifts sideways can step the other way than commanded)
 settles where it stands when that pose serves (the object within ``reach_accept`` of the
-shoulder; the held object ``place_margin`` inside the coffee table's edges), else walks there
-again on a path (``approach_retries``); a walk circling near its goal (``walk_stall_time``)
+shoulder; the held object ``place_margin`` inside the coffee table's edges), else a place turns
+on the spot where that brings the object over the top, and both walk there again on a path
+(``approach_retries`` in all); a walk circling near its goal (``walk_stall_time``)
 ends there; no path to the coffee table: its other sides, then the map without its weak
 obstacles (stray depth points); no path left to any other goal: the stage gives it up (next
 top, next side, next frontier) instead of standing.

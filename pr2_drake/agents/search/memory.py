@@ -62,8 +62,10 @@ class SearchAgentParams(Params):
     back_time: float = 2.0
     approach_stall_time: float = 3.0
     approach_progress: float = 0.03
+    approach_yaw_weight: float = 0.3
     reach_accept: float = 0.55
     place_margin: float = 0.12
+    place_turn_deg: float = 40.0
     approach_retries: int = 2
     walk_stall_time: float = 8.0
     walk_progress: float = 0.05

@@ -13,8 +13,10 @@ model, the map it made, the detections): no simulator state.
   circles its goal.
 - A stalled approach settles where it stands when that pose serves (pick: the object within
   ``reach_accept`` of the picking hand's shoulder; place: the object, held as at the pick,
-  over the top ``place_margin`` inside its edges), else walks there again on a path
-  (``approach_retries`` times; forward walking steers out a sideways drift).
+  over the top ``place_margin`` inside its edges), else (``approach_retries`` times in all) a
+  place turns on the spot where a heading within ``place_turn_deg`` of facing the table brings
+  the object over the top, and both walk there again on a path (forward walking steers out a
+  sideways drift).
 - A walk circling its goal within ``walk_arrive`` ends there: the next stage's steps take over.
 - No path to the destination: the other sides of the coffee table, then the same counting the
   map's weak obstacles (a few stray points over floor seen many times: depth noise) as free;
@@ -72,11 +74,13 @@ class RecoveryStages:
         return False
 
     def _approach_stalled(self, m: SearchMemory, now: Now) -> bool:
-        """The approach has stalled farther than ``approach_accept`` from its goal."""
+        """The approach has stalled farther than ``approach_accept`` from its goal (progress:
+        the distance plus ``approach_yaw_weight`` times the heading error: turning counts)."""
         p = self.p
-        err = float(np.linalg.norm(m.goal[:2] - now.p_WB[:2]))
+        dist = float(np.linalg.norm(m.goal[:2] - now.p_WB[:2]))
+        err = dist + p.approach_yaw_weight * abs(_wrap(m.goal[2] - now.yaw))
         return self._stalled(m, err, now.t, p.approach_progress,
-                             p.approach_stall_time) and err > p.approach_accept
+                             p.approach_stall_time) and dist > p.approach_accept
 
     def _heading_serves(self, m: SearchMemory, yaw: float) -> bool:
         return abs(_wrap(m.goal[2] - yaw)) < 2 * math.radians(self.p.yaw_tolerance_deg)
@@ -94,12 +98,23 @@ class RecoveryStages:
         ox, oy = float(m.o_pick[0]), float(m.o_pick[1])
         return np.array([p_WB[0] + c * ox - s * oy, p_WB[1] + s * ox + c * oy])
 
-    def _place_pose_serves(self, m: SearchMemory, now: Now) -> bool:
-        """Facing the table (twice the yaw tolerance) with the object, the arm as at the pick,
-        over the destination ``place_margin`` inside its edges."""
-        o = self._held_object_at(m, now.p_WB, now.yaw)
-        return self._heading_serves(m, now.yaw) and self.destination.contains(
-            o, -self.p.place_margin)
+    def _object_over_top(self, m: SearchMemory, p_WB, yaw: float) -> bool:
+        """With the base at p_WB, heading ``yaw`` within ``place_turn_deg`` of facing the
+        table across ``m.side``, the object (the arm as at the pick) over the destination
+        ``place_margin`` inside its edges."""
+        facing = math.atan2(-m.side[1], -m.side[0])
+        return abs(_wrap(yaw - facing)) <= math.radians(self.p.place_turn_deg) and \
+            self.destination.contains(self._held_object_at(m, p_WB, yaw), -self.p.place_margin)
+
+    def _place_turn(self, m: SearchMemory, now: Now):
+        """The heading nearest the robot's (in steps of 2.5 deg) at which, standing where it
+        stands, the object is over the top (:meth:`_object_over_top`); None if none is."""
+        for k in range(int(2 * self.p.place_turn_deg / 2.5) + 1):
+            for sign in ((1.0,) if k == 0 else (1.0, -1.0)):
+                yaw = now.yaw + sign * math.radians(2.5 * k)
+                if self._object_over_top(m, now.p_WB, yaw):
+                    return _wrap(yaw)
+        return None
 
     def _recover_pick_approach(self, m: SearchMemory, now: Now) -> None:
         """A stalled approach to the pick pose: settle if the object is within reach; else walk
@@ -120,19 +135,28 @@ class RecoveryStages:
         self._go(m, Stage.SETTLE, now.t)
 
     def _recover_place_approach(self, m: SearchMemory, now: Now) -> None:
-        """A stalled approach to the place pose: settle if the object would be over the top;
-        else carry it there again (``approach_retries`` times); then FAILED."""
+        """A stalled approach to the place pose: settle if the object is over the top; else
+        (``approach_retries`` times) turn on the spot to a heading that brings it there, or
+        carry it on a path to the place pose set back to ``stage_distance``; then FAILED."""
+        t, p = now.t, self.p
         err = float(np.linalg.norm(m.goal[:2] - now.p_WB[:2]))
-        what = f"{now.t:7.2f} approach stalled {err:.2f} m from the place pose"
-        if self._place_pose_serves(m, now):
+        what = f"{t:7.2f} approach stalled {err:.2f} m from the place pose"
+        yaw = None if m.approach_tries >= p.approach_retries else self._place_turn(m, now)
+        if self._object_over_top(m, now.p_WB, now.yaw):
             m.log.append(f"{what}: the object is over the top, settle")
             m.cmd = np.zeros(3)
-            self._go(m, Stage.SETTLE_TABLE, now.t)
-        elif m.approach_tries < self.p.approach_retries and self._plan_destination(
-                m, now.p_WB, now.t):
+            self._go(m, Stage.SETTLE_TABLE, t)
+        elif yaw is not None:
+            m.approach_tries += 1
+            m.log.append(f"{what}: turn to {math.degrees(yaw):.0f} deg, the object over the "
+                         f"top ({m.approach_tries})")
+            self._go(m, Stage.APPROACH_TABLE, t)
+            m.goal = np.array([now.p_WB[0], now.p_WB[1], yaw])
+        elif m.approach_tries < p.approach_retries and self._plan(
+                m, now.p_WB, self._place_pose(m, self.destination, p.stage_distance)):
             m.approach_tries += 1
             m.log.append(f"{what}: carry it there again ({m.approach_tries})")
-            self._go(m, Stage.CARRY, now.t)
+            self._go(m, Stage.CARRY, t)
         else:
             m.failure = "the place pose was not reached"
             m.log.append(f"{what}: {m.failure}")

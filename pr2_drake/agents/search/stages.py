@@ -287,14 +287,15 @@ class SearchStages:
         xy = tab.center + n * (half + self.p.look_distance)
         return np.array([xy[0], xy[1], math.atan2(-n[1], -n[0])])
 
-    def _place_pose(self, m: SearchMemory, tab: Table) -> np.ndarray:
+    def _place_pose(self, m: SearchMemory, tab: Table, back: float = 0.0) -> np.ndarray:
         """(x, y, yaw) facing ``tab`` across ``m.side`` from which, the arm as at the pick,
         the object is over the top's centre line ``place_inset`` inside its near edge (deeper
-        if that would bring the base nearer than ``place_standoff`` to the edge)."""
+        if that would bring the base nearer than ``place_standoff`` to the edge; with
+        ``back`` [m], the base at least that far from the edge)."""
         _, tan, _ = tab.side_frame(m.side)
         left = np.array([m.side[1], -m.side[0]])  # the robot's left facing -n
         ox, oy = float(m.o_pick[0]), float(m.o_pick[1])
-        standoff = max(ox - self.p.place_inset, self.p.place_standoff)
+        standoff = max(ox - self.p.place_inset, self.p.place_standoff, back)
         return pose_at(tab, m.side, -oy * float(left @ tan), standoff)
 
     def _drop_point(self, m: SearchMemory, p_WB, yaw: float, tab: Table) -> np.ndarray:
