@@ -46,10 +46,24 @@ Stages (``stage`` output):
    so that the arm is as it was), as high over this top as it was over that one plus
    ``place_clearance``; RELEASE; the hand goes up; step BACK; DONE. While placing, the hand
    targets carry the object's vertical in the hand frame (6-value targets): the whole-body QP
-   keeps it vertical, so round objects are set down upright.
+   keeps it vertical, so round objects are set down upright;
+7. VERIFY: standing, the camera looks for the object (``verify_frames``): seen resting on the
+   coffee table: DONE; seen on another top (it fell there): pick it up again and place it
+   again (``place_retries``); on the floor (out of the arm's reach) or not seen: FAILED.
+
+Recovery (:mod:`.recovery`, issue 29): an approach whose distance to its pose stops shrinking
+(``approach_stall_time``; a gait that drifts sideways can step the other way than commanded)
+settles where it stands when that pose serves (the object within ``reach_accept`` of the
+shoulder; the held object ``place_margin`` inside the coffee table's edges), else a place turns
+on the spot where that brings the object over the top, and both walk there again on a path
+(``approach_retries`` in all); a walk circling near its goal (``walk_stall_time``)
+ends there; no path to the coffee table: its other sides, then the map without its weak
+obstacles (stray depth points); no path left to any other goal: the stage gives it up (next
+top, next side, next frontier) instead of standing.
 
 FAILED (standing, the reason in the memory's ``failure`` and the step log in its ``log``): not
-found on any table, pick failed ``pick_tries`` times, no path, or the object fell from the hand.
+found on any table, pick failed ``pick_tries`` times, no path to the destination, the object
+fell from the hand, the place pose not reached, or the placed object not on the table.
 
 A sentence that cannot be read (unknown object, no destination) ends the episode at its first
 update with the parser's message (termination ``agent_error``, the message in the report), not
@@ -63,8 +77,9 @@ which table holds what) and no simulator ground truth. Parameters: params/agents
 search_mapping.yaml, search_navigation.yaml. Positions in m, world frame W.
 
 The parts: :mod:`.sequencer` (ports, memory, one update), :mod:`.stages` (what each stage
-does), :mod:`.explore` (scan, map, search order, replanning, exploring), :mod:`.mapping` (the
-map), :mod:`.memory` (parameters, stages, memory), :mod:`.tables` (tops and poses).
+does), :mod:`.explore` (scan, map, search order, replanning, exploring), :mod:`.recovery`
+(stalls, failures, the check after a place), :mod:`.mapping` (the map), :mod:`.memory`
+(parameters, stages, memory), :mod:`.tables` (tops and poses).
 """
 
 from __future__ import annotations

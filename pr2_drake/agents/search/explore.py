@@ -21,7 +21,7 @@ from pydrake.math import RigidTransform
 
 from pr2_drake.agents.search.memory import SearchMemory, Stage
 from pr2_drake.agents.search.navigation import OccupancyGrid
-from pr2_drake.agents.search.tables import Table, best_side, pose_at, surface_order
+from pr2_drake.agents.search.tables import Table, surface_order
 from pr2_drake.agents.sequencer import Now
 
 
@@ -60,7 +60,7 @@ class ExploreStages:
                                  f"{np.round(hit, 2).tolist()}")
         if m.capture and self._on_sample(now.t):
             m.poses = [(now.t, self._camera_pose(context).GetAsMatrix4())] + m.poses[:3]
-        every = {Stage.LOOK: 1, Stage.SCAN: self.p.scan_capture_every}.get(
+        every = {Stage.LOOK: 1, Stage.VERIFY: 1, Stage.SCAN: self.p.scan_capture_every}.get(
             m.stage, self.p.walk_capture_every if m.stage in (Stage.NAVIGATE, Stage.CARRY)
             else 0)
         m.capture = bool(every) and self._sample_index(now.t + self.p.period) % every == 0 \
@@ -69,15 +69,15 @@ class ExploreStages:
 
     def _detector_may_see(self, m: SearchMemory, now: Now) -> bool:
         """Whether the next frame may reach the detector: frames rendered while scanning
-        (:meth:`_integrate`), those of a look from ``color_lead`` before its detection
-        (:meth:`_look` detects on the frame of the update ``look_settle`` + 0.15 s per try
-        after the robot stood still: that frame may be 0.2 s old, a sample skipped where the
-        10 Hz sample times fall just after the 50 Hz update times in floating point), and those of the walk to a
-        scan's spot rendered near its end (the stage may turn to SCAN before such a frame
-        is mapped; a scan's spot is ``explore_distance`` away when it is chosen). Other
-        frames only feed the map."""
+        (:meth:`_integrate`) or checking a place (VERIFY), those of a look from ``color_lead``
+        before its detection (:meth:`_look` detects on the frame of the update ``look_settle``
+        + 0.15 s per try after the robot stood still: that frame may be 0.2 s old, a sample
+        skipped where the 10 Hz sample times fall just after the 50 Hz update times in
+        floating point), and those of the walk to a scan's spot rendered near its end (the
+        stage may turn to SCAN before such a frame is mapped; a scan's spot is
+        ``explore_distance`` away when it is chosen). Other frames only feed the map."""
         p = self.p
-        if m.stage == Stage.SCAN:
+        if m.stage in (Stage.SCAN, Stage.VERIFY):
             return True
         if m.stage == Stage.LOOK:
             return bool(m.t_still >= 0 and now.t - m.t_still
@@ -163,12 +163,6 @@ class ExploreStages:
         """The top looked at holds no target: never again."""
         m.searched.append(np.array(m.surfaces[m.place].center))
 
-    def _destination_pose(self, m: SearchMemory) -> np.ndarray:
-        """The pose ``look_distance`` out from the destination's best side (``m.side``)."""
-        tab, p = self.destination, self.p
-        m.side = best_side(self._grid(m), tab, p.look_distance, self.nav.robot_radius)
-        return pose_at(tab, m.side, 0.0, p.look_distance)
-
     # ---- paths -------------------------------------------------------------------------------
     def _path_blocked(self, m: SearchMemory, p_WB) -> bool:
         """Whether the map, since the path was planned, shows an obstacle on what is left of
@@ -177,7 +171,7 @@ class ExploreStages:
         if m.path is None or m.path_version == m.map.version:
             return False
         m.path_version = m.map.version
-        g = self._grid(m).inflated(self.nav.robot_radius)
+        g = self._nav_grid(m).inflated(self.nav.robot_radius)
         p = np.asarray(p_WB[:2], float)
         path = np.asarray(m.path, float)
         k = max(0, int(np.argmin(np.linalg.norm(path - p, axis=1))) - 1)
@@ -193,11 +187,11 @@ class ExploreStages:
         """Plan again to the stage's goal (recomputed for a look or a place pose, whose
         table may now be better known); False when no path is left."""
         goal = m.goal
+        m.log.append(f"{t:7.2f} path blocked: plan again")
+        if m.stage == Stage.CARRY:
+            return self._plan_destination(m, p_WB, t)
         if m.stage == Stage.NAVIGATE and m.nav_then == Stage.LOOK and m.place is not None:
             goal = self._look_pose(m, m.place)
-        elif m.stage == Stage.CARRY:
-            goal = self._destination_pose(m)
-        m.log.append(f"{t:7.2f} path blocked: plan again")
         return self._plan(m, p_WB, goal)
 
     # ---- the camera --------------------------------------------------------------------------

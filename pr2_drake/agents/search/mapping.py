@@ -166,11 +166,23 @@ class HeightMap:
     def grid(self) -> OccupancyGrid:
         """Occupied cells (obstacles seen, and the map's border); unknown cells are free."""
         if "grid" not in self._cache:
-            occ = self.obstacle > 0
-            occ[[0, -1], :] = True
-            occ[:, [0, -1]] = True
-            self._cache["grid"] = OccupancyGrid(occ, self.origin, self.resolution)
+            self._cache["grid"] = self._occupancy(self.obstacle > 0)
         return self._cache["grid"]
+
+    def grid_without_weak(self, max_count: int, floor_ratio: float) -> OccupancyGrid:
+        """As :meth:`grid`, but a cell with at most ``max_count`` obstacle points that was seen
+        as floor at least ``floor_ratio`` times as often as an obstacle counts as free (depth
+        noise: a few stray points over floor seen many times)."""
+        key = ("weak", int(max_count), float(floor_ratio))
+        if key not in self._cache:
+            weak = (self.obstacle <= max_count) & (self.floor >= floor_ratio * self.obstacle)
+            self._cache[key] = self._occupancy((self.obstacle > 0) & ~weak)
+        return self._cache[key]
+
+    def _occupancy(self, occ: np.ndarray) -> OccupancyGrid:
+        occ[[0, -1], :] = True
+        occ[:, [0, -1]] = True
+        return OccupancyGrid(occ, self.origin, self.resolution)
 
     def surfaces(self, params: MappingParams) -> list[Table]:
         """The flat tops seen (tables, seats, counters): per height level (``surface_bin``),

@@ -60,6 +60,21 @@ class SearchAgentParams(Params):
     release_hold: float = 0.6
     back_speed: float = 0.10
     back_time: float = 2.0
+    approach_stall_time: float = 3.0
+    approach_progress: float = 0.03
+    approach_yaw_weight: float = 0.3
+    reach_accept: float = 0.55
+    place_margin: float = 0.12
+    place_turn_deg: float = 40.0
+    approach_retries: int = 2
+    walk_stall_time: float = 8.0
+    walk_progress: float = 0.05
+    walk_arrive: float = 0.6
+    weak_obstacle: int = 2
+    weak_floor_ratio: float = 4.0
+    verify_frames: int = 3
+    verify_height: float = 0.05
+    place_retries: int = 1
     scan_rate: float = 0.4
     scan_turn_deg: float = 330.0
     scan_capture_every: int = 2
@@ -92,6 +107,7 @@ class Stage(enum.IntEnum):
     DONE = 14
     FAILED = 15
     SCAN = 16
+    VERIFY = 17
 
 
 @dataclass
@@ -125,6 +141,12 @@ class SearchMemory(SequencerMemory):
         r_pick, o_pick: hand and object at the pick in the base's heading frame (m);
         hand_over_top: the hand centre above the pick table's top (m); up_H: the held
             object's vertical in the hand frame (None: not kept vertical).
+        best_err, t_best: the least distance [m] to the stage's goal seen since the stage
+            began (by a walk or an approach: the progress watch of :mod:`.recovery`) and when
+            it last shrank by the stage's step [s]; approach_tries: walks made again to a pick
+            or place pose after an approach stalled; lenient: the path was planned past the
+            map's weak obstacles (no path otherwise); place_tries: objects picked up again
+            after a place the check after it (VERIFY) did not see on the coffee table.
         failure: why the sequence FAILED ("" while it has not); log: what happened when.
     """
 
@@ -163,5 +185,10 @@ class SearchMemory(SequencerMemory):
     o_pick: np.ndarray = field(default_factory=lambda: np.zeros(3))
     hand_over_top: float = 0.0
     up_H: Optional[np.ndarray] = None
+    best_err: float = float("inf")
+    t_best: float = 0.0
+    approach_tries: int = 0
+    lenient: bool = False
+    place_tries: int = 0
     failure: str = ""
     log: list = field(default_factory=list)

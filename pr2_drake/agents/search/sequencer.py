@@ -1,6 +1,7 @@
 """ObjectSearchSequencer: the task-6 stage machine: its ports, its memory (in its Context) and
 one update; what each stage does is :mod:`pr2_drake.agents.search.stages` (search, pick, carry,
-place) and :mod:`pr2_drake.agents.search.explore` (scan, map, explore).
+place), :mod:`pr2_drake.agents.search.explore` (scan, map, explore) and
+:mod:`pr2_drake.agents.search.recovery` (stalls and failures: the recovery paths).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from pr2_drake.agents.search.mapping import HeightMap, MappingParams
 from pr2_drake.agents.search.memory import SearchAgentParams, SearchMemory, Stage
 from pr2_drake.agents.search.navigation import NavigationParams
 from pr2_drake.agents.search.perception import CameraIntrinsics
+from pr2_drake.agents.search.recovery import RecoveryStages
 from pr2_drake.agents.search.stages import ORDER, SearchStages
 from pr2_drake.agents.search.tables import Table
 from pr2_drake.agents.sequencer import Now, TaskSequencer
@@ -26,7 +28,7 @@ from pr2_drake.lifetime import weak_calc
 from pr2_drake.ports import BODY_STATE_SIZE, JOINT_STATE_SIZE, P_WB, QUAT_WB
 
 
-class ObjectSearchSequencer(SearchStages, ExploreStages, TaskSequencer):
+class ObjectSearchSequencer(SearchStages, ExploreStages, RecoveryStages, TaskSequencer):
     """Stages of the search and transport (see :mod:`pr2_drake.agents.search.agent`).
 
     Inputs: ``body_state``, ``joint_state``, ``pick_state``, ``rgbd`` (RgbdFrame),

@@ -38,6 +38,7 @@ ORDER = (
     ((Stage.CARRY,), "_carry"), ((Stage.APPROACH_TABLE,), "_approach_table"),
     ((Stage.SETTLE_TABLE,), "_settle_table"), ((Stage.PLACE,), "_place"),
     ((Stage.RELEASE,), "_release"), ((Stage.RETRACT,), "_retract"), ((Stage.BACK,), "_back"),
+    ((Stage.VERIFY,), "_verify"),
     ((Stage.DONE, Stage.FAILED), "_stand"),
 )
 
@@ -108,6 +109,8 @@ class SearchStages:
         if self._steps(m, now.p_WB, now.yaw) or self._close_enough(m, now.p_WB, now.yaw, now.t):
             m.cmd = np.zeros(3)
             self._go(m, Stage.SETTLE, now.t)
+        elif self._approach_stalled(m, now):
+            self._recover_pick_approach(m, now)
 
     def _settle(self, m: SearchMemory, now: Now, context) -> None:
         """Stand still, then the hand's path to the grasp point: up in front of the body,
@@ -177,8 +180,8 @@ class SearchStages:
 
     def _lift(self, m: SearchMemory, now: Now, context) -> None:
         if self._follow_hand(m, now.t):
-            goal = self._destination_pose(m)
-            if self._plan(m, now.p_WB, goal):
+            m.approach_tries = 0
+            if self._plan_destination(m, now.p_WB, now.t):
                 self._go(m, Stage.CARRY, now.t)
             else:
                 m.failure = "no path to the destination"
@@ -204,6 +207,8 @@ class SearchStages:
         if self._steps(m, now.p_WB, now.yaw) or self._close_enough(m, now.p_WB, now.yaw, now.t):
             m.cmd = np.zeros(3)
             self._go(m, Stage.SETTLE_TABLE, now.t)
+        elif self._approach_stalled(m, now):
+            self._recover_place_approach(m, now)
 
     def _settle_table(self, m: SearchMemory, now: Now, context) -> None:
         m.cmd = np.zeros(3)
@@ -238,8 +243,9 @@ class SearchStages:
         m.cmd = np.array([-self.p.back_speed, 0.0, 0.0])
         if now.t - m.t_stage >= self.p.back_time:
             n, m.retry_side = m.retry_side, None
-            if n is None:
-                self._go(m, Stage.DONE, now.t)
+            if n is None:  # placed: is it on the table? (.recovery)
+                m.t_still, m.look_tries = -1.0, 0
+                self._go(m, Stage.VERIFY if self.p.verify_frames > 0 else Stage.DONE, now.t)
             elif not self._walk_round(m, m.surfaces[m.place], n, now.p_WB, now.t):
                 m.failure = "pick failed"
                 self._go(m, Stage.FAILED, now.t)
@@ -249,6 +255,7 @@ class SearchStages:
         the top (nearest the object, with floor in front on the map, not tried yet); FAILED
         when there is none."""
         m.sides_tried.append(np.array(m.side, float))
+        m.approach_tries = 0
         n = self._next_pick_side(m, m.surfaces[m.place])
         m.log.append(f"{t:7.2f} pick missed from side {np.round(m.side, 2).tolist()}; "
                      f"next side {None if n is None else np.round(n, 2).tolist()}")
@@ -270,6 +277,7 @@ class SearchStages:
         m.log.append(f"{t:7.2f} {m.stage.name} -> {stage.name}")
         m.stage = stage
         m.t_stage = t
+        m.best_err, m.t_best = math.inf, t  # the progress watch starts again
 
     def _look_pose(self, m: SearchMemory, name: str) -> np.ndarray:
         """The pose ``look_distance`` out from top ``name``'s best side, facing it."""
@@ -279,14 +287,15 @@ class SearchStages:
         xy = tab.center + n * (half + self.p.look_distance)
         return np.array([xy[0], xy[1], math.atan2(-n[1], -n[0])])
 
-    def _place_pose(self, m: SearchMemory, tab: Table) -> np.ndarray:
+    def _place_pose(self, m: SearchMemory, tab: Table, back: float = 0.0) -> np.ndarray:
         """(x, y, yaw) facing ``tab`` across ``m.side`` from which, the arm as at the pick,
         the object is over the top's centre line ``place_inset`` inside its near edge (deeper
-        if that would bring the base nearer than ``place_standoff`` to the edge)."""
+        if that would bring the base nearer than ``place_standoff`` to the edge; with
+        ``back`` [m], the base at least that far from the edge)."""
         _, tan, _ = tab.side_frame(m.side)
         left = np.array([m.side[1], -m.side[0]])  # the robot's left facing -n
         ox, oy = float(m.o_pick[0]), float(m.o_pick[1])
-        standoff = max(ox - self.p.place_inset, self.p.place_standoff)
+        standoff = max(ox - self.p.place_inset, self.p.place_standoff, back)
         return pose_at(tab, m.side, -oy * float(left @ tan), standoff)
 
     def _drop_point(self, m: SearchMemory, p_WB, yaw: float, tab: Table) -> np.ndarray:
@@ -308,6 +317,7 @@ class SearchStages:
         try:
             m.path = plan_path(self._grid(m), p_WB[:2], goal[:2], self.nav.robot_radius)
             m.path_version = m.map.version
+            m.lenient = False
         except NoPathError as e:
             m.log.append(f"no path: {e}")
             m.path = None
@@ -340,11 +350,16 @@ class SearchStages:
 
     def _walk(self, m: SearchMemory, p_WB, yaw: float, t: float) -> bool:
         """Follow ``m.path`` to ``m.goal`` (planned again when the map shows it blocked); True
-        within ``approach_radius`` of its end."""
+        within ``approach_radius`` of its end, or circling near it (:meth:`_walk_circles`).
+        No path left: the stage gives its goal up (:meth:`_give_up_goal`)."""
         if np.linalg.norm(m.goal[:2] - p_WB[:2]) < self.p.approach_radius:
             return True
+        if self._walk_circles(m, p_WB, t):
+            return True
         if self._path_blocked(m, p_WB) and not self._replan(m, p_WB, t):
-            m.path = np.array([p_WB[:2]])  # stand; the stage's goal is out of reach
+            m.cmd = np.zeros(3)
+            self._give_up_goal(m, p_WB, t)
+            return False
         m.cmd = follow_velocity(m.path, p_WB, yaw, None, self.nav)
         return False
 
@@ -400,6 +415,7 @@ class SearchStages:
         # Stand at the side nearest the object (when there is room), else the look side.
         n = self._pick_side(m, tab, float(p_WB[2]))
         m.sides_tried = []
+        m.approach_tries = 0
         if not np.allclose(n, look) and self._walk_round(m, tab, n, p_WB, t):
             return
         m.hand, m.pick_goal = self._pick_pose(m, tab, look, self.p.pick_standoff)

@@ -40,8 +40,15 @@ class Table:
 def best_side(grid: OccupancyGrid, table: Table, standoff: float, radius: float) -> np.ndarray:
     """Outward unit normal (x, y) of the table side to stand at: the long sides first, the one
     with the most free floor in front (ray on the grid inflated by ``radius``)."""
+    return sides_by_preference(grid, table, standoff, radius)[0]
+
+
+def sides_by_preference(grid: OccupancyGrid, table: Table, standoff: float,
+                        radius: float) -> list[np.ndarray]:
+    """The four outward unit normals (x, y) of ``table``'s sides, best first (as
+    :func:`best_side` ranks them; ties in the order +x, -x, +y, -y)."""
     g = grid.inflated(radius)
-    best, best_key = None, None
+    ranked = []
     for n in (np.array([1.0, 0.0]), np.array([-1.0, 0.0]), np.array([0.0, 1.0]),
               np.array([0.0, -1.0])):
         half, _, half_len = table.side_frame(n)
@@ -50,10 +57,9 @@ def best_side(grid: OccupancyGrid, table: Table, standoff: float, radius: float)
             if not g.free(table.center + n * (half + d)):
                 break
             free = d
-        key = (free >= standoff + 0.2, half_len >= half, free)
-        if best_key is None or key > best_key:
-            best, best_key = n, key
-    return best
+        ranked.append(((free >= standoff + 0.2, half_len >= half, free), n))
+    # sorted() is stable with reverse=True too: equal keys keep the order above.
+    return [n for _, n in sorted(ranked, key=lambda kn: kn[0], reverse=True)]
 
 
 def surface_order(tops: list[Table], hints: list, expected_height: Optional[float], p0,
