@@ -319,3 +319,51 @@ def test_no_path_left_to_a_walks_goal_gives_it_up_instead_of_standing(stage):
         assert len(m.searched) == 1 and TABLES["desk"].contains(m.searched[0])
         assert m.stage == Stage.NAVIGATE and m.place != first and m.path is not None
         assert not TABLES["desk"].contains(m.surfaces[m.place].center)
+
+
+def test_a_place_from_a_base_stopped_short_reaches_towards_the_planned_drop_within_place_reach():
+    """Randomised-free failure (nominal seed 3): the approach accepted a base 0.2 m short of the
+    place pose; the object, released where the base stood, hung over the edge on the thigh.
+    The hand now moves towards the planned drop, at most ``place_reach``."""
+    from pr2_drake.agents.sequencer import Now
+
+    seq, ctx, _ = placing()
+    m = seq.mutable_memory(ctx)
+    x, y, yaw = m.goal
+    n = np.asarray(m.side, float)
+    tab, p = seq.destination, seq.p
+
+    def depth(o):  # the object's centre inside the near edge [m]
+        return tab.side_frame(n)[0] - float(n @ (o[:2] - tab.center))
+
+    planned = seq._drop_point(m, m.goal[:2], yaw, tab)
+    at_pose = seq._place_drop(m, Now(10.0, np.array([x, y, 0.9]), yaw, True, 0.0))
+    assert np.allclose(at_pose, planned)  # on its pose (object 0.17 m in): no reach
+    assert depth(seq._held_object_at(m, m.goal[:2], yaw)) == pytest.approx(p.place_inset)
+
+    short = np.array([x, y]) + 0.2 * n  # 0.2 m back from the table
+    here = seq._drop_point(m, short, yaw, tab)
+    drop = seq._place_drop(m, Now(10.0, np.array([*short, 0.9]), yaw, True, 0.0))
+    assert drop[2] == pytest.approx(here[2])  # the same height
+    assert np.linalg.norm(drop[:2] - here[:2]) == pytest.approx(p.place_reach)
+    assert float(-n @ (drop[:2] - here[:2])) == pytest.approx(p.place_reach)  # towards the top
+    assert "the hand reaches 0.12 m" in m.log[-1]
+    o_here = seq._held_object_at(m, short, yaw)
+    assert depth(o_here) == pytest.approx(p.place_inset - 0.2)  # it would have hung over
+    assert depth(o_here + (drop[:2] - here[:2])) == pytest.approx(p.place_inset - 0.2 + 0.12)
+
+
+def test_an_object_held_near_the_body_is_set_down_place_inset_inside_the_edge():
+    """Held 0.25 m ahead, the place pose (the base ``place_standoff`` from the edge) would set
+    it 0.10 m inside: the hand reaches the rest of ``place_inset``."""
+    from pr2_drake.agents.sequencer import Now
+
+    seq, ctx, _ = placing()
+    m = seq.mutable_memory(ctx)
+    m.r_pick, m.o_pick = np.array([0.15, -0.18, 0.05]), np.array([0.25, -0.25, 0.02])
+    m.goal = seq._place_pose(m, seq.destination)
+    x, y, yaw = m.goal
+    n, tab = np.asarray(m.side, float), seq.destination
+    drop = seq._place_drop(m, Now(10.0, np.array([x, y, 0.9]), yaw, True, 0.0))
+    shift = drop[:2] - seq._drop_point(m, m.goal[:2], yaw, tab)[:2]
+    assert np.allclose(shift, -n * (seq.p.place_inset - (0.25 - seq.p.place_standoff)))

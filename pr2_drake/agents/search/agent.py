@@ -43,7 +43,9 @@ Stages (``stage`` output):
    ``place_inset`` inside its near edge (the base at least ``place_standoff`` from the edge),
    SETTLE;
 6. PLACE: the hand goes back to where it held the object at the pick (relative to the base,
-   so that the arm is as it was), as high over this top as it was over that one plus
+   so that the arm is as it was), moved by at most ``place_reach`` to where the place pose
+   would hold the object (a base stopped short of it; an object held near the body, set
+   ``place_inset`` inside), as high over this top as it was over that one plus
    ``place_clearance``; RELEASE; the hand goes up; step BACK; DONE. While placing, the hand
    targets carry the object's vertical in the hand frame (6-value targets): the whole-body QP
    keeps it vertical, so round objects are set down upright;

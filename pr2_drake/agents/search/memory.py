@@ -56,6 +56,7 @@ class SearchAgentParams(Params):
     pick_tries: int = 4
     carry: List[float] = field(default_factory=lambda: [0.22, 0.14, 0.30])
     place_inset: float = 0.17
+    place_reach: float = 0.12
     place_clearance: float = -0.001
     release_hold: float = 0.6
     back_speed: float = 0.10

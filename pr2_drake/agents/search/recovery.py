@@ -162,6 +162,30 @@ class RecoveryStages:
             m.log.append(f"{what}: {m.failure}")
             self._go(m, Stage.FAILED, now.t)
 
+    def _place_drop(self, m: SearchMemory, now: Now) -> np.ndarray:
+        """p_WH to release at: the drop point where the base stands (:meth:`_drop_point`), the
+        hand moved (horizontally, by at most ``place_reach`` [m]) to where the place pose
+        ``m.goal`` would hold the object, at least ``place_inset`` inside the near edge. The
+        approach accepts a base ``approach_accept`` off its pose, and the base keeps
+        ``place_standoff`` from the edge: without this a flat object held near the body was set
+        down over the edge, propped on the thigh, and fell when the robot stepped back."""
+        tab, p = self.destination, self.p
+        here = self._drop_point(m, now.p_WB, now.yaw, tab)
+        want = self._drop_point(m, m.goal[:2], m.goal[2], tab)
+        n = np.asarray(m.side, float)  # the near edge's outward normal
+        half = tab.side_frame(n)[0]
+        depth = half - float(n @ (self._held_object_at(m, m.goal[:2], m.goal[2]) - tab.center))
+        want[:2] -= n * max(p.place_inset - depth, 0.0)
+        shift = want[:2] - here[:2]
+        norm = float(np.linalg.norm(shift))
+        if norm > p.place_reach:
+            shift *= p.place_reach / norm
+        if norm > 0.01:
+            m.log.append(f"{now.t:7.2f} place: the hand reaches {np.linalg.norm(shift):.2f} m "
+                         f"towards the planned drop ({norm:.2f} m off where the base stands)")
+        here[:2] += shift
+        return here
+
     # ---- after a place ----------------------------------------------------------------------
     def _verify(self, m: SearchMemory, now: Now, context) -> None:
         """Stand still, take frames as a look does (``verify_frames``); the object seen:

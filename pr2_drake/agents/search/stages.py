@@ -216,7 +216,7 @@ class SearchStages:
         if not now.standing:
             m.t_stage = now.t
         elif now.t - m.t_stage >= self.p.settle_time:
-            drop = self._drop_point(m, now.p_WB, now.yaw, self.destination)
+            drop = self._place_drop(m, now)
             self._start_hand_path(m, [drop + [0.0, 0.0, 0.08], drop], now.t)
             self._go(m, Stage.PLACE, now.t)
 
