@@ -70,8 +70,8 @@ class ExploreStages:
     def _detector_may_see(self, m: SearchMemory, now: Now) -> bool:
         """Whether the next frame may reach the detector: frames rendered while scanning
         (:meth:`_integrate`) or checking a place (VERIFY), those of a look from ``color_lead``
-        before its detection (:meth:`_look` detects on the frame of the update ``look_settle``
-        + 0.15 s per try after the robot stood still: that frame may be 0.2 s old, a sample
+        before its detection (:meth:`_look` detects on the frame of the update
+        :meth:`_frame_wait` after the robot stood still: that frame may be 0.2 s old, a sample
         skipped where the 10 Hz sample times fall just after the 50 Hz update times in
         floating point), and those of the walk to a scan's spot rendered near its end (the
         stage may turn to SCAN before such a frame is mapped; a scan's spot is
@@ -80,8 +80,8 @@ class ExploreStages:
         if m.stage in (Stage.SCAN, Stage.VERIFY):
             return True
         if m.stage == Stage.LOOK:
-            return bool(m.t_still >= 0 and now.t - m.t_still
-                        >= p.look_settle + 0.15 * m.look_tries - p.color_lead)
+            return bool(m.t_still >= 0
+                        and now.t - m.t_still >= self._frame_wait(m) - p.color_lead)
         return bool(m.stage == Stage.NAVIGATE and m.nav_then == Stage.SCAN
                     and np.linalg.norm(m.goal[:2] - now.p_WB[:2])
                     < p.approach_radius + p.color_margin)

@@ -191,16 +191,9 @@ class RecoveryStages:
         """Stand still, take frames as a look does (``verify_frames``); the object seen:
         :meth:`_placed_seen`; not seen in any: FAILED."""
         p, t = self.p, now.t
-        m.cmd = np.zeros(3)
-        if not now.standing:
-            m.t_still = -1.0
+        taken, det = self._still_frame(m, now, context)
+        if not taken:
             return
-        if m.t_still < 0:
-            m.t_still = t
-        if t - m.t_still < p.look_settle + 0.15 * m.look_tries:
-            return
-        det = self._detect(m, context)
-        m.look_tries += 1
         if det is not None:
             self._placed_seen(m, now, det)
         elif m.look_tries >= p.verify_frames:

@@ -27,6 +27,9 @@ from pr2_drake.agents.search.tables import (
 )
 from pr2_drake.agents.sequencer import Now, along_path
 
+#: [s] the wait before a frame grows by this with each frame taken at one heading.
+LOOK_TRY_WAIT = 0.15
+
 #: The stages' handlers in the order an update runs them ("check_held" is not a stage: while
 #: the object should be in the hand, it checks it is).
 ORDER = (
@@ -67,6 +70,26 @@ class SearchStages:
                 self._go(m, Stage.LOOK, now.t)
                 m.t_still = -1.0
                 m.look_tries = 0
+    def _frame_wait(self, m: SearchMemory) -> float:
+        """How long [s] the gait must have stood still before the next frame is taken:
+        ``look_settle``, plus ``LOOK_TRY_WAIT`` per frame already taken here."""
+        return self.p.look_settle + LOOK_TRY_WAIT * m.look_tries
+
+    def _still_frame(self, m: SearchMemory, now: Now, context):
+        """Stand still and, once the gait has stood for :meth:`_frame_wait`, take a frame:
+        (True, the target's detection or None); (False, None) while waiting."""
+        m.cmd = np.zeros(3)
+        if not now.standing:
+            m.t_still = -1.0
+            return False, None
+        if m.t_still < 0:
+            m.t_still = now.t
+        if now.t - m.t_still < self._frame_wait(m):
+            return False, None
+        det = self._detect(m, context)
+        m.look_tries += 1
+        return True, det
+
     def _look(self, m: SearchMemory, now: Now, context) -> None:
         """Turn to the next heading, stand still, take frames until the target is found on
         this table (then APPROACH), or go on to the next place."""
@@ -78,16 +101,9 @@ class SearchStages:
             m.cmd = np.array([0.0, 0.0, min(max(p.approach_yaw_gain * e_yaw, -0.4), 0.4)])
             m.t_still = -1.0
             return
-        m.cmd = np.zeros(3)
-        if not now.standing:
-            m.t_still = -1.0
+        taken, det = self._still_frame(m, now, context)
+        if not taken:
             return
-        if m.t_still < 0:
-            m.t_still = t
-        if t - m.t_still < p.look_settle + 0.15 * m.look_tries:
-            return
-        det = self._detect(m, context)
-        m.look_tries += 1
         tab = m.surfaces[m.place]
         if det is not None and tab.contains(det, p.search_margin) and abs(
                 det[2] - tab.height) < 0.35:
