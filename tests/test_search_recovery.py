@@ -300,7 +300,7 @@ def test_no_path_left_to_a_walks_goal_gives_it_up_instead_of_standing(stage):
     if stage == Stage.CARRY:
         seq.GetInputPort("pick_state").FixValue(ctx, PickState(True, "right_hand", "book"))
         m.hand, m.goal = 1, np.array([-2.0, -1.15, -math.pi / 2])
-    if stage == Stage.CARRY:  # the robot walled in where it stands (real obstacles)
+        # the robot walled in where it stands (real obstacles)
         walls = [((1.4, 2.6), (0.45, 0.55)), ((1.4, 2.6), (1.45, 1.55)),
                  ((1.45, 1.55), (0.45, 1.55)), ((2.45, 2.55), (0.45, 1.55))]
     else:  # the desk and the floor before it walled off
@@ -322,9 +322,9 @@ def test_no_path_left_to_a_walks_goal_gives_it_up_instead_of_standing(stage):
 
 
 def test_a_place_from_a_base_stopped_short_reaches_towards_the_planned_drop_within_place_reach():
-    """Randomised-free failure (nominal seed 3): the approach accepted a base 0.2 m short of the
-    place pose; the object, released where the base stood, hung over the edge on the thigh.
-    The hand now moves towards the planned drop, at most ``place_reach``."""
+    """A failure at nominal physics (task 6 seed 3): the approach accepted a base 0.2 m short
+    of the place pose; the object, released where the base stood, hung over the edge on the
+    thigh. The hand now moves towards the planned drop, at most ``place_reach``."""
     from pr2_drake.agents.sequencer import Now
 
     seq, ctx, _ = placing()
