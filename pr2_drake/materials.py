@@ -160,7 +160,11 @@ def write_boxes_gltf(boxes: Sequence[tuple[RigidTransform, Sequence[float]]], rg
     uv = np.concatenate([q[2] for q in parts])
     idx = np.concatenate([q[3] + 24 * k for k, q in enumerate(parts)]).astype(np.uint32)
     color = [float(c) for c in rgba] + ([1.0] if len(rgba) == 3 else [])
-    key = hashlib.sha1(pos.tobytes() + uv.tobytes() + repr((color, mat)).encode()).hexdigest()[:20]
+    # The texture's absolute path is in the key: the file refers to it by a relative path, so
+    # another checkout (or a moved one) must not reuse a file that points into this one.
+    texture = data_path("models", "textures", mat.texture) if mat.texture else None
+    key = hashlib.sha1(pos.tobytes() + uv.tobytes()
+                       + repr((color, mat, str(texture))).encode()).hexdigest()[:20]
     path = _cache_dir() / f"box_{key}.gltf"
     if path.is_file():
         return path
@@ -190,8 +194,7 @@ def write_boxes_gltf(boxes: Sequence[tuple[RigidTransform, Sequence[float]]], rg
             {"bufferView": 3, "componentType": 5125, "count": len(idx), "type": "SCALAR"},
         ],
     }
-    if mat.texture:
-        texture = data_path("models", "textures", mat.texture)
+    if texture is not None:
         doc["images"] = [{"uri": os.path.relpath(texture, path.parent)}]
         doc["samplers"] = [{"magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497}]
         doc["textures"] = [{"sampler": 0, "source": 0}]

@@ -134,3 +134,29 @@ def test_a_box_group_is_one_obj_mesh_in_the_low_preset():
     tb = Testbed(TestbedConfig(task=1, seed=0, camera=camera))
     perception = tb.camera_scene_graph.model_inspector().NumGeometriesWithRole(Role.kPerception)
     assert perception < 60  # 515 when each stone was a Box
+
+
+def test_a_textured_glTF_points_at_this_checkouts_texture(tmp_path, monkeypatch):
+    """The glTF cache (in the temp folder, shared by every checkout) refers to its texture by a
+    relative path: a second checkout must get its own file, whose image resolves to its own
+    texture, not reuse one pointing into a checkout that may be gone."""
+    import json
+    import shutil
+
+    import pr2_drake.materials as materials_module
+    from pr2_drake.paths import data_path
+
+    boxes = [(RigidTransform([0.0, 0, 0]), (1, 1, 0.1))]
+    mat = next(m for m in materials().values() if m.texture)
+    here = write_boxes_gltf(boxes, (0.5, 0.5, 0.5, 1.0), mat)
+    other = tmp_path / "other_checkout"
+    shutil.copytree(data_path("models", "textures"), other / "models" / "textures")
+    monkeypatch.setattr(materials_module, "data_path",
+                        lambda *parts: other.joinpath(*parts))
+    there = write_boxes_gltf(boxes, (0.5, 0.5, 0.5, 1.0), mat)
+    assert there != here
+    for path, root in ((here, data_path("models", "textures")),
+                       (there, other / "models" / "textures")):
+        uri = json.loads(path.read_text())["images"][0]["uri"]
+        image = (path.parent / uri).resolve()
+        assert image == (root / mat.texture).resolve() and image.is_file()
