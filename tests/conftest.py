@@ -1,6 +1,7 @@
-"""Shared fixtures: small builders used across the test suite."""
+"""Shared fixtures: small builders used across the test suite; the number of test processes."""
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -8,6 +9,31 @@ import pytest
 from pr2_drake.controllers.standing import StandingController
 from pr2_drake.episode import Episode, wire_system
 from pr2_drake.scenario import Scenario
+
+
+# Each test process holds its own Drake diagrams (up to about 1.2 GB of memory at the suite's
+# peak): ``-n auto`` starts one per core this process may use, at most one per this much
+# available memory.
+MEMORY_PER_WORKER = 1.5e9  # [bytes]
+
+
+def pytest_xdist_auto_num_workers(config):
+    """Workers for ``-n auto`` (pyproject.toml's addopts): the cores this process may run on
+    (its affinity, and a cgroup CPU quota where there is one), capped by available memory."""
+    n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    n = n or 1
+    try:
+        quota, period = open("/sys/fs/cgroup/cpu.max").read().split()[:2]
+        if quota != "max":
+            n = min(n, max(1, int(quota) // int(period)))
+    except (OSError, ValueError):
+        pass
+    try:
+        available = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        n = min(n, max(1, int(available // MEMORY_PER_WORKER)))
+    except (OSError, ValueError, AttributeError):
+        pass
+    return n
 
 
 def standing_simulator(scenario: Scenario | None = None):
