@@ -28,10 +28,11 @@ def pytest_xdist_auto_num_workers(config):
             n = min(n, max(1, int(quota) // int(period)))
     except (OSError, ValueError):
         pass
-    try:
-        available = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-        n = min(n, max(1, int(available // MEMORY_PER_WORKER)))
-    except (OSError, ValueError, AttributeError):
+    try:  # MemAvailable: free memory plus the page cache the kernel can drop
+        with open("/proc/meminfo") as f:
+            kb = next(int(line.split()[1]) for line in f if line.startswith("MemAvailable:"))
+        n = min(n, max(1, int(kb * 1024 // MEMORY_PER_WORKER)))
+    except (OSError, ValueError, StopIteration):
         pass
     return n
 
