@@ -208,9 +208,12 @@ def _eval_one(scenario):
     return run_episode(scenario)
 
 
-def summarize(reports: list[dict[str, Any]]) -> dict[str, Any]:
-    """Success rate, mean score, per-item rates and completion times over episodes."""
+def summarize(reports: list[dict[str, Any]], rubric: list[str] = ()) -> dict[str, Any]:
+    """Success rate, mean score, per-item rates, completion times and the failures by class
+    (:mod:`pr2_drake.failures`; ``rubric``: the task's item names in order) over episodes."""
     import numpy as np
+
+    from pr2_drake.failures import failures_by_class
 
     n = len(reports)
     items: dict[str, int] = {}
@@ -232,6 +235,7 @@ def summarize(reports: list[dict[str, Any]]) -> dict[str, Any]:
         "completion_time_median": float(np.median(done_times)) if done_times else None,
         "mean_real_time_factor": float(np.mean([r["real_time_factor"] or 0 for r in reports])),
         "scenario": reports[0].get("scenario", []),  # the switches on (Scenario.switches)
+        "failures": failures_by_class(reports, list(rubric)),
     }
 
 
@@ -253,7 +257,7 @@ def cmd_eval(args) -> int:
 
     from pr2_drake.agents import load_agent_class
     from pr2_drake.run import agent_spec, check_output_path
-    from pr2_drake.tasks import task_id
+    from pr2_drake.tasks import get_task, task_id
 
     seeds = _parse_seeds(args.seeds)
     base = scenario_from_args(args)
@@ -278,7 +282,7 @@ def cmd_eval(args) -> int:
         # wake-up pipe under its own thread ("Exception ignored ... Bad file descriptor").
         with ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn")) as pool:
             reports = _collect(pool.map(_eval_one, work), len(work))
-    summary = summarize(reports)
+    summary = summarize(reports, [r.item for r in get_task(task).spec.rubric])
     print(f"\ntask {task}: {summary['episodes']} episodes (scenario switches: {switches})")
     print(f"  success rate      {100 * summary['success_rate']:.1f} %")
     print(f"  full marks        {100 * summary['full_marks_rate']:.1f} %")
@@ -290,11 +294,22 @@ def cmd_eval(args) -> int:
     if summary["completion_time_mean"] is not None:
         print(f"  completion time   mean {summary['completion_time_mean']:.1f} s, "
               f"median {summary['completion_time_median']:.1f} s")
+    _print_failures(summary["failures"])
     if args.out:
         with open(args.out, "w") as f:
             json.dump({"summary": summary, "episodes": reports}, f, indent=2)
         print(f"  results written to {args.out}")
     return 0
+
+
+def _print_failures(failures: dict[str, list[dict]]) -> None:
+    """The failure classes, each with its seeds and the first item each missed."""
+    if not failures:
+        return
+    print("  failures (seed: first item missed)")
+    for label, episodes in failures.items():
+        seeds = ", ".join(f"{e['seed']}: {e['missed'] or '-'}" for e in episodes)
+        print(f"    {label:<36} {len(episodes):>3}  ({seeds})")
 
 
 def cmd_compete(args) -> int:

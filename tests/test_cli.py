@@ -66,7 +66,12 @@ def test_eval_summarises_seeds_in_parallel(tmp_path):
     assert [e["seed"] for e in results["episodes"]] == [0, 1]
     assert results["summary"]["episodes"] == 2
     assert results["summary"]["terminations"] == {"timeout": 2}
+    failures = results["summary"]["failures"]  # 0.3 s: no rubric item earned
+    assert list(failures) == ["out of time"]
+    assert [(e["seed"], e["missed"]) for e in failures["out of time"]] == [
+        (0, "task_region"), (1, "task_region")]
     assert "success rate" in out.stdout and "mean score" in out.stdout
+    assert "out of time" in out.stdout and "0: task_region" in out.stdout
 
 
 def test_run_task_prints_the_rubric():

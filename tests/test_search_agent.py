@@ -339,17 +339,23 @@ def test_a_hand_hanging_under_a_table_edge_backs_out_before_it_rises():
     assert out_from_under(np.array([0.1, -0.27, 0.65]), facing, tab, margin) is None  # above
 
 
-def test_a_pick_that_misses_from_one_side_walks_round_to_the_next_free_side():
-    # The hand never closes on the object (no attachment): after ``pick_tries`` the robot
-    # lifts the hand, steps back and walks round to another side with floor on the map.
-    p_WO = np.array([2.3, 2.7, 0.63])
-    seq, ctx = sequencer(detector=StubDetector(p_WO))
+def picking():
+    """The sequencer in PICK at t = 1 s at the desk's object (seen from its south side), and
+    that side's outward normal."""
+    seq, ctx = sequencer(detector=StubDetector(np.array([2.3, 2.7, 0.63])))
     sim = searching(seq, ctx, 2.0, 1.95, math.pi / 2)
     sim.AdvanceTo(1.0)
     m = seq.mutable_memory(ctx)
     look = np.array(m.side)
     assert np.allclose(look, [0, -1])  # reachable from the look side: no walk round yet
     m.stage, m.t_stage = Stage.PICK, 1.0
+    return seq, ctx, sim, look
+
+
+def test_a_pick_that_misses_from_one_side_walks_round_to_the_next_free_side():
+    # The hand never closes on the object (no attachment): after ``pick_tries`` the robot
+    # lifts the hand, steps back and walks round to another side with floor on the map.
+    seq, ctx, sim, look = picking()
     sim.AdvanceTo(1.0 + seq.p.pick_tries * seq.p.pick_timeout + 0.1)
     m = seq.memory(ctx)
     assert m.stage == Stage.RETRACT and m.retry_side is not None
@@ -359,3 +365,29 @@ def test_a_pick_that_misses_from_one_side_walks_round_to_the_next_free_side():
     assert m.stage == Stage.NAVIGATE and m.nav_then == Stage.APPROACH
     assert not np.allclose(m.side, look) and m.retry_side is None
     assert GRID.inflated(seq.nav.robot_radius).free(m.path[-1])
+
+
+def test_a_pick_that_latched_another_object_lets_go_and_walks_round_to_the_next_side():
+    # The grasp latches the object nearest the hand: here the teddy bear beside the book.
+    # The sequencer lets go of it (RELEASE, no LIFT), then steps back and walks round.
+    seq, ctx, sim, look = picking()
+    seq.GetInputPort("pick_state").FixValue(ctx, PickState(True, "right_hand", "teddy_bear"))
+    sim.AdvanceTo(1.1)
+    m = seq.memory(ctx)
+    assert m.stage == Stage.RELEASE, m.log[-3:]
+    assert "holds teddy_bear, not book" in " ".join(m.log[-3:])
+    assert seq.GetOutputPort("release").Eval(ctx) is True
+    assert np.allclose(m.sides_tried[0], look) and not np.allclose(m.retry_side, look)
+    seq.GetInputPort("pick_state").FixValue(ctx, PickState())  # let go
+    sim.AdvanceTo(1.1 + seq.p.release_hold + 2 * seq.p.reach_time + seq.p.back_time + 1.0)
+    m = seq.memory(ctx)
+    assert m.stage == Stage.NAVIGATE and m.nav_then == Stage.APPROACH, m.log[-4:]
+    assert not np.allclose(m.side, look) and m.retry_side is None
+    assert "LIFT" not in " ".join(m.log)
+
+
+def test_a_pick_of_the_target_lifts_it():
+    seq, ctx, sim, _ = picking()
+    seq.GetInputPort("pick_state").FixValue(ctx, PickState(True, "right_hand", "book"))
+    sim.AdvanceTo(1.1)
+    assert seq.memory(ctx).stage == Stage.LIFT

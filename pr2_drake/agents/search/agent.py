@@ -37,7 +37,8 @@ Stages (``stage`` output):
    distance, as near the shoulder as that allows), or, when another object seen with it would
    be nearly as near that point (``pick`` latches the nearest), higher over it or from
    another side (``grasp_margin``); PICK: ``pick`` until ``pick_state`` reports
-   it attached (timeout: closer to the centre and try again, ``pick_tries`` in all);
+   it attached (timeout: closer to the centre and try again, ``pick_tries`` in all; another
+   object than the target attached: let go, step back and pick from the next side);
 5. LIFT to the carry pose, NAVIGATE (holding it) to the coffee table, APPROACH the place
    pose from which, the arm as at the pick, the object is over the table's centre line
    ``place_inset`` inside its near edge (the base at least ``place_standoff`` from the edge),

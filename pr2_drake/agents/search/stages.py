@@ -161,10 +161,16 @@ class SearchStages:
             self._go(m, Stage.PICK, now.t)
 
     def _pick(self, m: SearchMemory, now: Now, context) -> None:
-        """``pick`` until attached (then remember how the hand held it, and LIFT); after
-        ``pick_timeout``, try again nearer the object's centre, ``pick_tries`` in all."""
+        """``pick`` until attached (then remember how the hand held it, and LIFT; another
+        object than the target: let go and pick from another side); after ``pick_timeout``,
+        try again nearer the object's centre, ``pick_tries`` in all."""
         p, p_WB, yaw, t = self.p, now.p_WB, now.yaw, now.t
-        if now.pick.attached:
+        if now.pick.attached and now.pick.object != self.instruction.target:
+            # The grasp latches the object nearest the hand: one beside the target was.
+            m.log.append(f"{t:7.2f} the hand holds {now.pick.object}, not "
+                         f"{self.instruction.target}: let go")
+            self._pick_missed(m, p_WB, t, let_go=True)
+        elif now.pick.attached:
             p_WH = self.model.hand_point(m.hand)[0]
             # Where the hand holds it, in the base's heading frame (x ahead, y left, z up):
             # placing with the arm as it was here keeps the object's tilt small, and the
@@ -266,10 +272,10 @@ class SearchStages:
                 m.failure = "pick failed"
                 self._go(m, Stage.FAILED, now.t)
 
-    def _pick_missed(self, m: SearchMemory, p_WB, t: float) -> None:
-        """After ``pick_tries`` misses: hand up, step back and walk round to the next side of
-        the top (nearest the object, with floor in front on the map, not tried yet); FAILED
-        when there is none."""
+    def _pick_missed(self, m: SearchMemory, p_WB, t: float, let_go: bool = False) -> None:
+        """After ``pick_tries`` misses (or, ``let_go``, a pick of another object: RELEASE it
+        first): hand up, step back and walk round to the next side of the top (nearest the
+        object, with floor in front on the map, not tried yet); FAILED when there is none."""
         m.sides_tried.append(np.array(m.side, float))
         m.approach_tries = 0
         n = self._next_pick_side(m, m.surfaces[m.place])
@@ -280,6 +286,9 @@ class SearchStages:
             self._go(m, Stage.FAILED, t)
             return
         m.retry_side = n
+        if let_go:  # RELEASE lifts the hand once the object is let go, then RETRACT
+            self._go(m, Stage.RELEASE, t)
+            return
         self._start_hand_path(m, [self.model.hand_point(m.hand)[0] + [0.0, 0.0, 0.10]], t)
         self._go(m, Stage.RETRACT, t)
 
