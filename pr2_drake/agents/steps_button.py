@@ -49,6 +49,8 @@ class StepsButtonParams(Params):
     FILE: ClassVar[str] = "params/agents/steps_button.yaml"
     period: float = 0.02
     walk_speed: float = 0.25
+    stairs_speed: float = 0.15
+    stairs_lead: float = 0.6
     slow_radius: float = 0.4
     lateral_gain: float = 0.8
     max_lateral_speed: float = 0.08
@@ -95,7 +97,8 @@ class StepsButtonSequencer(TaskSequencer):
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
-    def __init__(self, button_center, params: StepsButtonParams | None = None):
+    def __init__(self, button_center, params: StepsButtonParams | None = None,
+                 stairs_x: tuple[float, float] | None = None):
         super().__init__()
         from pr2_drake.controllers.model import WholeBodyModel
 
@@ -106,6 +109,10 @@ class StepsButtonSequencer(TaskSequencer):
         self.p = params or StepsButtonParams()
         self.model = WholeBodyModel()  # forward kinematics of the observed state (scratch)
         self.stand = np.array([self.button[0] - self.p.stand_distance, self.button[1]])
+        # x span [m] where the forward command is at most stairs_speed: from stairs_lead
+        # before the first riser to the last riser (None: walk_speed throughout)
+        self.stairs_x = None if stairs_x is None else (float(stairs_x[0]) - self.p.stairs_lead,
+                                                      float(stairs_x[1]))
         self._bs = self.DeclareVectorInputPort("body_state", BODY_STATE_SIZE)
         self._js = self.DeclareVectorInputPort("joint_state", JOINT_STATE_SIZE)
         self.declare_sequencer(StepsButtonMemory(), self.p.period, grasp=False)
@@ -139,9 +146,14 @@ class StepsButtonSequencer(TaskSequencer):
             if math.hypot(ex, ey) < p.approach_radius:
                 self._go(m, Stage.APPROACH, t)
             else:
-                vx = p.walk_speed * min(1.0, max(ex, 0.0) / p.slow_radius)
+                # Past the stand point (ex < 0) with the lateral error left: back up to it,
+                # never on towards the post (a forward floor walked a drifting robot into it).
+                vx = (p.walk_speed * min(1.0, ex / p.slow_radius) if ex > 0.0
+                      else max(p.approach_gain * ex, -p.approach_speed))
+                if self.stairs_x is not None and self.stairs_x[0] < p_WB[0] < self.stairs_x[1]:
+                    vx = min(vx, p.stairs_speed)  # a fast CoM runs ahead of the short steps
                 vy = min(max(p.lateral_gain * ey, -p.max_lateral_speed), p.max_lateral_speed)
-                m.cmd = np.array([max(vx, 0.05), vy, yaw_rate])
+                m.cmd = np.array([vx, vy, yaw_rate])
         if m.stage == Stage.APPROACH:
             # Between the soles, not the base: the base sways a few cm sideways with every
             # step, more than the tolerance, and its error flipped the small steps back and
@@ -198,7 +210,11 @@ class StepsButtonAgent(Diagram):
             raise ValueError(f"StepsButtonAgent needs a 'button_center' prior; got "
                              f"{sorted(priors)}")
         seq_params = StepsButtonParams.load(params)
-        build_sequencer_agent(self, StepsButtonSequencer(center, seq_params),
+        stairs_x = None
+        if all(k in priors for k in ("step_start_x", "step_depth", "step_count")):
+            x0 = float(priors["step_start_x"])
+            stairs_x = (x0, x0 + float(priors["step_depth"]) * int(priors["step_count"]))
+        build_sequencer_agent(self, StepsButtonSequencer(center, seq_params, stairs_x),
                               self.controller(priors, walking_params))
 
     @staticmethod
