@@ -6,9 +6,10 @@ footholds on treads (:class:`pr2_drake.controllers.planning.tread_steps.TreadFoo
 staircase as its terrain model (:func:`pr2_drake.controllers.planning.terrain.stairs_from_priors`),
 with the stairs walking overrides (task 5's row: params/controllers/walking_stairs.yaml):
 
-1. WALK: forward at ``walk_speed`` holding heading 0 (+x, up the steps) and steering sideways
-   onto the button's y, towards a standing point ``stand_distance`` before the button's face;
-   the footstep planner puts every sole on a tread and steps to over each riser;
+1. WALK: forward at ``walk_speed`` (at most ``stairs_speed`` over the steps) holding heading 0
+   (+x, up the steps) and steering sideways onto the button's y, towards a standing point
+   ``stand_distance`` before the button's face (:func:`walk_velocity`); the footstep planner
+   puts every sole on a tread and steps to over each riser;
 2. APPROACH: small steps (proportional velocity command) onto that point; then wait until the
    gait stands (SETTLE);
 3. REACH: the right hand rises in front of the button (``pre_press`` before its face), then
@@ -69,6 +70,23 @@ class StepsButtonParams(Params):
 
 
 
+def walk_velocity(ex: float, ey: float, x: float, p: StepsButtonParams,
+                  stairs_x: tuple[float, float] | None = None) -> tuple[float, float]:
+    """WALK's command (vx, vy) [m/s] for the stand point's offset (ex, ey) [m] in the heading
+    frame, the base at x [m] (W). Forward at ``walk_speed``, slowing within ``slow_radius``;
+    past the stand point (ex < 0) it backs up to it, never on towards the post (a forward
+    floor walked a robot that drifted sideways into the post and off the floor's end).
+    Within ``stairs_x`` (the x span the agent slows over, see :class:`StepsButtonSequencer`)
+    at most ``stairs_speed``: a faster CoM ran ahead of the short steps before a riser and a
+    toe caught its nosing. Sideways: ``lateral_gain`` ey within ``max_lateral_speed``."""
+    vx = (p.walk_speed * min(1.0, ex / p.slow_radius) if ex > 0.0
+          else max(p.approach_gain * ex, -p.approach_speed))
+    if stairs_x is not None and stairs_x[0] < x < stairs_x[1]:
+        vx = min(vx, p.stairs_speed)
+    vy = min(max(p.lateral_gain * ey, -p.max_lateral_speed), p.max_lateral_speed)
+    return vx, vy
+
+
 class Stage(enum.IntEnum):
     WALK = 0
     APPROACH = 1
@@ -93,6 +111,12 @@ class StepsButtonSequencer(TaskSequencer):
 
     Inputs: ``body_state``, ``joint_state``, ``walker_status``. Outputs: ``velocity_command``
     (3), ``hand_targets`` ([left, right]), ``stage`` (1). Memory: :class:`StepsButtonMemory`.
+
+    Args:
+        button_center: p_W of the button's front face centre [m].
+        params: the sequencer's parameters (default params/agents/steps_button.yaml).
+        stairs_x: x of the first riser and of the last tread's end [m] (W): WALK is at most
+            ``stairs_speed`` from ``stairs_lead`` before the first to the second (None: no cap).
     """
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
@@ -110,7 +134,7 @@ class StepsButtonSequencer(TaskSequencer):
         self.model = WholeBodyModel()  # forward kinematics of the observed state (scratch)
         self.stand = np.array([self.button[0] - self.p.stand_distance, self.button[1]])
         # x span [m] where the forward command is at most stairs_speed: from stairs_lead
-        # before the first riser to the last riser (None: walk_speed throughout)
+        # before the first riser to the end of the last tread (None: walk_speed throughout)
         self.stairs_x = None if stairs_x is None else (float(stairs_x[0]) - self.p.stairs_lead,
                                                       float(stairs_x[1]))
         self._bs = self.DeclareVectorInputPort("body_state", BODY_STATE_SIZE)
@@ -146,13 +170,7 @@ class StepsButtonSequencer(TaskSequencer):
             if math.hypot(ex, ey) < p.approach_radius:
                 self._go(m, Stage.APPROACH, t)
             else:
-                # Past the stand point (ex < 0) with the lateral error left: back up to it,
-                # never on towards the post (a forward floor walked a drifting robot into it).
-                vx = (p.walk_speed * min(1.0, ex / p.slow_radius) if ex > 0.0
-                      else max(p.approach_gain * ex, -p.approach_speed))
-                if self.stairs_x is not None and self.stairs_x[0] < p_WB[0] < self.stairs_x[1]:
-                    vx = min(vx, p.stairs_speed)  # a fast CoM runs ahead of the short steps
-                vy = min(max(p.lateral_gain * ey, -p.max_lateral_speed), p.max_lateral_speed)
+                vx, vy = walk_velocity(ex, ey, float(p_WB[0]), p, self.stairs_x)
                 m.cmd = np.array([vx, vy, yaw_rate])
         if m.stage == Stage.APPROACH:
             # Between the soles, not the base: the base sways a few cm sideways with every

@@ -14,9 +14,9 @@ error of 10 cm counts no more than a bias would), at ``com_bias_rate`` [1/s], wi
 The gait planner then plans with the measured CoM plus the estimate: it holds the real CoM, not
 the model's, over its ZMP. Errors that alternate with the stance side (the swing leg's own
 dynamics) and transients (a push, a stone) average out over steps; a bias does not.
-``com_bias_rate`` 0 turns it off: the default (params/controllers/walking.yaml); the rocky-road
-and valve agents turn it on (walking_rough.yaml, walking_valve.yaml), and the task-6 search
-agent at 0.5 /s (walking_search.yaml).
+``com_bias_rate`` 0 turns it off: the default (params/controllers/walking.yaml); the rocky-road,
+valve and stairs agents turn it on (walking_rough.yaml, walking_valve.yaml,
+walking_stairs.yaml), and the task-6 search agent at 0.5 /s (walking_search.yaml).
 """
 
 from __future__ import annotations
