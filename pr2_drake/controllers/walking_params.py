@@ -173,6 +173,17 @@ class QpParams:
 
 
 @dataclass
+class ComFilterParams:
+    """The CoM state the gait planner sees (pr2_drake/controllers/com_filter.py): time
+    constants [s] of the corrections towards the measured position and velocity (0 = that one
+    unfiltered; both 0 = off), and the longest gap between ticks [s] it predicts across."""
+
+    position_time: float = 0.0
+    velocity_time: float = 0.0
+    max_gap: float = 0.05
+
+
+@dataclass
 class ArmParams:
     """The arms when the whole-body QP drives them (``arms_command`` in effort mode)."""
 
@@ -209,6 +220,7 @@ class WalkingParams(Params):
     arm_stiffness: float = 60.0
     arm_damping: float = 3.0
     arms: ArmParams = field(default_factory=lambda: ArmParams())
+    com_filter: ComFilterParams = field(default_factory=ComFilterParams)
 
     def check(self) -> None:
         """Raise ValueError on inconsistent values."""
@@ -226,6 +238,10 @@ class WalkingParams(Params):
         if g.com_bias_axes not in ("x", "y", "xy"):
             raise ValueError(f"gait.com_bias_axes must be 'x', 'y' or 'xy', got "
                              f"{g.com_bias_axes!r}")
+        f = self.com_filter
+        if min(f.position_time, f.velocity_time) < 0 or f.max_gap <= 0:
+            raise ValueError("com_filter.position_time and velocity_time must be >= 0 and "
+                             f"max_gap > 0, got {f}")
         if min(g.com_bias_rate, g.com_bias_error_max, g.com_bias_max) < 0:
             raise ValueError("gait.com_bias_rate, com_bias_error_max and com_bias_max must be "
                              ">= 0")

@@ -2,7 +2,10 @@
 
 One control tick (:meth:`WholeBodyController.update`):
 
-1. the robot model takes the measured state (:class:`WholeBodyModel`);
+1. the robot model takes the measured state (:class:`WholeBodyModel`), and the CoM state the
+   planner sees is filtered against sensor noise when ``com_filter`` is on
+   (:class:`pr2_drake.controllers.com_filter.ComStateFilter`, predicted with the CoM
+   acceleration of the previous tick's QP solution);
 2. the gait planner (:class:`GaitPlanner`, with a footstep planner and a terrain model passed
    in) turns the velocity command into a plan (:class:`WholeBodyPlan`): active contacts and
    references; the caller adds hand targets and which hand holds something;
@@ -28,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pr2_drake.controllers.com_filter import ComStateFilter
 from pr2_drake.controllers.planning.terrain import FlatTerrain
 from pr2_drake.controllers.planning.footsteps import FootstepPlanner
 from pr2_drake.controllers.planning.gait import GaitPlanner, Phase
@@ -154,6 +158,7 @@ class WholeBodyController:
         self.model = m = WholeBodyModel()
         self.arms_driven = arms == "effort"
         self.planner = GaitPlanner(p, m, footsteps, terrain)
+        self.com_filter = ComStateFilter(p.com_filter)
         # Objectives, in the order their rows are summed.
         self.contacts = SoleContactObjective(p.qp, m)
         self.objectives = [ComObjective(p.com_xy, p.com_z, p.com_lateral_single_weight),
@@ -212,6 +217,7 @@ class WholeBodyController:
     def reset(self) -> None:
         """Forget the gait state: the next tick starts standing from the measured pose."""
         self.planner.reset()
+        self.com_filter.reset()
         self.info = TickInfo()
         self.qp.last_tau = np.zeros(len(self.effort))
         self.qp.last_tau_arms = np.zeros(N_ARMS)
@@ -291,7 +297,8 @@ class WholeBodyController:
         targets = check_hand_targets(hand_targets)
         m = self.model
         m.update(q, v)
-        com, comd, _, _ = m.com()
+        com, comd, J_com, jdv_com = m.com()
+        com, comd = self.com_filter.update(t, com, comd)
         lean = None
         if self.arms_driven:
             attached = (bool(attached[0]), bool(attached[1]))
@@ -310,7 +317,11 @@ class WholeBodyController:
                 h.force_prior = self.hand_force.f[side]
         if timed:
             self.timing[0] += time.perf_counter() - t0
-        return self.track(plan, self.objectives, q, v, tau_arms)
+        tau = self.track(plan, self.objectives, q, v, tau_arms)
+        if self.com_filter.enabled:
+            res = self.last_result
+            self.com_filter.set_acceleration(J_com @ res.vdot + jdv_com if res.ok else None)
+        return tau
 
     def track(self, plan: WholeBodyPlan, objectives, q: np.ndarray, v: np.ndarray,
               tau_arms: np.ndarray | None = None,

@@ -1,0 +1,81 @@
+"""The CoM state the gait planner sees: the measured one, filtered against sensor noise.
+
+The planner's decisions (when to lift off, where to step) follow the divergent component of
+motion xi = c + cdot / omega, and omega ~ 4.4 /s turns a few cm/s of velocity noise into
+centimetres of DCM. With the randomised sensor noise (pr2_drake/randomize.py: base position
+2 mm, base velocity 0.02 m/s, joint velocities 0.05 rad/s, white at every physics step) the
+measured DCM jitters by about 1 cm from one 4 ms tick to the next: double supports end early
+and the next step catches the error by stepping wide and short (docs/benchmarks.md, seventh
+round). A plain low-pass would delay the DCM by its time constant; this filter predicts
+instead, with the CoM acceleration the whole-body QP commanded on the previous tick
+(a_WC = J_C vdot + Jdot_C v: the model's contact and hand forces over the mass, plus gravity),
+and corrects the prediction towards the measurement:
+
+    predict:  c <- c + cdot dt + a dt^2 / 2,   cdot <- cdot + a dt
+    correct:  c <- c + k_p (c_meas - c),       cdot <- cdot + k_v (cdot_meas - cdot)
+
+with k = min(dt / tau, 1) per tick. Only what the model does not know (a push, a latency's
+lag, a stone under the sole) lags, by about tau: a 40 N push on the 60 kg robot by
+0.7 m/s^2 x 0.02 s ~ 1.3 cm/s, 3 mm of DCM. White noise shrinks by sqrt(k / (2 - k)) (0.33 at
+k = 0.2: 20 ms at 250 Hz). Both time constants 0 (the default, params/controllers/walking.yaml
+``com_filter``) pass the measurement through unchanged.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class ComStateFilter:
+    """p_WC [m] and v_WC [m/s] of the centre of mass (W), predicted and corrected each tick.
+
+    Args:
+        params: ``walking_params.ComFilterParams``: ``position_time`` and ``velocity_time`` [s]
+            (0 = that one unfiltered), ``max_gap`` [s] (a longer gap between ticks restarts
+            from the measurement).
+    """
+
+    def __init__(self, params):
+        self.params = params
+        self.reset()
+
+    @property
+    def enabled(self) -> bool:
+        """Whether the filter does anything (a time constant > 0)."""
+        return self.params.position_time > 0.0 or self.params.velocity_time > 0.0
+
+    def reset(self) -> None:
+        """Forget the estimate: the next tick starts from its measurement."""
+        self.t: float | None = None
+        self.c = np.zeros(3)
+        self.cdot = np.zeros(3)
+        self.accel = np.zeros(3)  # [m/s^2] the prediction's CoM acceleration (W)
+
+    def set_acceleration(self, a_WC: np.ndarray | None) -> None:
+        """The CoM acceleration [m/s^2] (W) the controller commanded for the coming interval;
+        None (a failed QP) predicts none."""
+        if a_WC is None:
+            self.accel[:] = 0.0
+        else:
+            self.accel[:] = a_WC
+
+    def update(self, t: float, c_meas: np.ndarray, cdot_meas: np.ndarray):
+        """This tick's measured CoM position and velocity at time t [s] in, the estimate out
+        (the measured arrays themselves while the filter is off)."""
+        if not self.enabled:
+            return c_meas, cdot_meas
+        p = self.params
+        dt = None if self.t is None else t - self.t
+        self.t = t
+        if dt is None or dt <= 0.0 or dt > p.max_gap:
+            self.c[:] = c_meas
+            self.cdot[:] = cdot_meas
+            return self.c.copy(), self.cdot.copy()
+        a = self.accel
+        self.c += self.cdot * dt + a * (0.5 * dt * dt)
+        self.cdot += a * dt
+        k_p = 1.0 if p.position_time <= 0.0 else min(dt / p.position_time, 1.0)
+        k_v = 1.0 if p.velocity_time <= 0.0 else min(dt / p.velocity_time, 1.0)
+        self.c += k_p * (c_meas - self.c)
+        self.cdot += k_v * (cdot_meas - self.cdot)
+        return self.c.copy(), self.cdot.copy()
