@@ -37,45 +37,48 @@ class ComStateFilter:
 
     def __init__(self, params):
         self.params = params
+        self._on = params.position_time > 0.0 or params.velocity_time > 0.0
         self.reset()
 
     @property
     def enabled(self) -> bool:
         """Whether the filter does anything (a time constant > 0)."""
-        return self.params.position_time > 0.0 or self.params.velocity_time > 0.0
+        return self._on
 
     def reset(self) -> None:
         """Forget the estimate: the next tick starts from its measurement."""
         self.t: float | None = None
-        self.c = np.zeros(3)
-        self.cdot = np.zeros(3)
-        self.accel = np.zeros(3)  # [m/s^2] the prediction's CoM acceleration (W)
+        # (Three Python floats each: cheaper per tick than numpy calls on 3-vectors, and the
+        # same IEEE operations in the same order.)
+        self.c = [0.0, 0.0, 0.0]  # [m] p_WC
+        self.cdot = [0.0, 0.0, 0.0]  # [m/s] v_WC
+        self.accel = [0.0, 0.0, 0.0]  # [m/s^2] the prediction's CoM acceleration (W)
 
     def set_acceleration(self, a_WC: np.ndarray | None) -> None:
         """The CoM acceleration [m/s^2] (W) the controller commanded for the coming interval;
         None (a failed QP) predicts none."""
-        if a_WC is None:
-            self.accel[:] = 0.0
-        else:
-            self.accel[:] = a_WC
+        self.accel = [0.0, 0.0, 0.0] if a_WC is None else [float(x) for x in a_WC]
 
     def update(self, t: float, c_meas: np.ndarray, cdot_meas: np.ndarray):
         """This tick's measured CoM position and velocity at time t [s] in, the estimate out
-        (the measured arrays themselves while the filter is off)."""
-        if not self.enabled:
+        (new arrays; the measured arrays themselves while the filter is off)."""
+        if not self._on:
             return c_meas, cdot_meas
         p = self.params
         dt = None if self.t is None else t - self.t
         self.t = t
+        mc, mv = c_meas.tolist(), cdot_meas.tolist()
         if dt is None or dt <= 0.0 or dt > p.max_gap:
-            self.c[:] = c_meas
-            self.cdot[:] = cdot_meas
-            return self.c.copy(), self.cdot.copy()
-        a = self.accel
-        self.c += self.cdot * dt + a * (0.5 * dt * dt)
-        self.cdot += a * dt
+            self.c, self.cdot = mc, mv
+            return np.array(mc), np.array(mv)
+        h = 0.5 * dt * dt
         k_p = 1.0 if p.position_time <= 0.0 else min(dt / p.position_time, 1.0)
         k_v = 1.0 if p.velocity_time <= 0.0 else min(dt / p.velocity_time, 1.0)
-        self.c += k_p * (c_meas - self.c)
-        self.cdot += k_v * (cdot_meas - self.cdot)
-        return self.c.copy(), self.cdot.copy()
+        c, v = [], []
+        for ci, vi, ai, mci, mvi in zip(self.c, self.cdot, self.accel, mc, mv):
+            ci = ci + (vi * dt + ai * h)  # predict
+            vi = vi + ai * dt
+            c.append(ci + k_p * (mci - ci))  # correct
+            v.append(vi + k_v * (mvi - vi))
+        self.c, self.cdot = c, v
+        return np.array(c), np.array(v)
