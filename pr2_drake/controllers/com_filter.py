@@ -15,8 +15,8 @@ and corrects the prediction towards the measurement:
     correct:  c <- c + k_p (c_meas - c),       cdot <- cdot + k_v (cdot_meas - cdot)
 
 with k = min(dt / tau, 1) per tick. Only what the model does not know (a push, a latency's
-lag, a stone under the sole) lags, by about tau: a 40 N push on the 60 kg robot by
-0.7 m/s^2 x 0.02 s ~ 1.3 cm/s, 3 mm of DCM. White noise shrinks by sqrt(k / (2 - k)) (0.33 at
+lag, a stone under the sole) lags, by tau - dt once settled: a 40 N push on the 34.5 kg robot
+(1.16 m/s^2) by 1.9 cm/s at tau = 20 ms, 4 mm of DCM. White noise shrinks by sqrt(k / (2 - k)) (0.33 at
 k = 0.2: 20 ms at 250 Hz). Both time constants 0 (the default, params/controllers/walking.yaml
 ``com_filter``) pass the measurement through unchanged.
 """
