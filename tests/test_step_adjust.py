@@ -3,6 +3,8 @@ the capture point, and a push while walking recovered in closed loop."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from pr2_drake.bench.walking import push_once
@@ -78,3 +80,17 @@ def test_side_push_towards_the_stance_leg_is_recovered():
     # over it, the case that needs a narrow step and then a quick wide one.
     fell, _ = push_once("right", walking=True, force=40.0, push_time=0.2, walk_before=4.0)
     assert not fell
+
+
+def test_partial_sideways_gain_takes_that_share_of_the_lateral_error():
+    # dcm_gain [1, 0.8] (the rocky road's): a DCM off the orbit sideways and forwards moves
+    # the landing 0.8 of the full capture-point correction sideways, all of it forwards.
+    b = np.array([0.0, 0.03])
+    xi = _dcm_for_landing_at(PLAN + np.array([0.03, -0.04]), b, 0.05, T_PLAN)
+    full, part = (choose_step(0.05, xi, STANCE[:2], STANCE, 0, PLAN, b, 0.0, T_PLAN, T_PLAN,
+                              T_PLAN, T_PLAN, dataclasses.replace(GAIT, dcm_gain=gain), OMEGA)
+                  for gain in ([1.0, 1.0], [1.0, 0.8]))
+    np.testing.assert_allclose(full.target_xy - PLAN, [0.03, -0.04], atol=1e-9)
+    np.testing.assert_allclose(part.target_xy - PLAN, [0.03, -0.032], atol=1e-9)
+    rough = WalkingParams.load(overrides=["params/controllers/walking_rough.yaml"]).gait
+    assert list(rough.dcm_gain) == [1.0, 0.8]
