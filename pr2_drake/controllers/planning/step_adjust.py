@@ -88,20 +88,26 @@ def choose_step(t: float, xi: np.ndarray, p_st: np.ndarray, stance: np.ndarray, 
     half_ds = 0.5 * g.double_support
     w_x, w_out, w_in = g.step_cost_x, g.step_cost_outward, g.step_cost_inward
     w_t, penalty = g.step_cost_timing, g.retime_penalty
-    p0x, p0y = float(plan_xy[0]), float(plan_xy[1])
+    if blend:
+        # The blend is affine in the growth: u = u0 + growth u1 (plan p0 plus, in the heading
+        # frame, the gains times u* - p0), its terms computed once for all candidates.
+        p0x, p0y = float(plan_xy[0]), float(plan_xy[1])
+        ax, ay = px - bx - p0x, py - by - p0y
+        h0x, h0y = (ch * ax + sh * ay) * gx, (-sh * ax + ch * ay) * gy
+        h1x, h1y = (ch * ex + sh * ey) * gx, (-sh * ex + ch * ey) * gy
+        u0x, u0y = p0x + ch * h0x - sh * h0y, p0y + sh * h0x + ch * h0y
+        u1x, u1y = ch * h1x - sh * h1y, sh * h1x + ch * h1y
     exp = math.exp
     best = None
     for T in times:
         growth = exp(omega * (T - t + half_ds))
         # Ideal landing point u* = xi(T) - b, blended with the plan per heading-frame axis.
-        ux = px + ex * growth - bx
-        uy = py + ey * growth - by
         if blend:
-            dx_, dy_ = ux - p0x, uy - p0y
-            hx = (ch * dx_ + sh * dy_) * gx
-            hy = (-sh * dx_ + ch * dy_) * gy
-            ux = p0x + ch * hx - sh * hy
-            uy = p0y + sh * hx + ch * hy
+            ux = u0x + growth * u1x
+            uy = u0y + growth * u1y
+        else:
+            ux = px + ex * growth - bx
+            uy = py + ey * growth - by
         # In the stance sole's frame, clipped to the reachable box.
         rx, ry = ux - sx, uy - sy
         dx = cs * rx + ss * ry
