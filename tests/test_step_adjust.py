@@ -94,3 +94,17 @@ def test_partial_sideways_gain_takes_that_share_of_the_lateral_error():
     np.testing.assert_allclose(part.target_xy - PLAN, [0.03, -0.032], atol=1e-9)
     rough = WalkingParams.load(overrides=["params/controllers/walking_rough.yaml"]).gait
     assert list(rough.dcm_gain) == [1.0, 0.8]
+
+
+def test_partial_gain_acts_in_the_heading_frame():
+    # Heading 0.7 rad: the landing moves by R G R^T (u* - plan) from the plan, G = diag(gains).
+    b = np.array([0.0, 0.03])
+    err = np.array([0.02, -0.03])
+    xi = _dcm_for_landing_at(PLAN + err, b, 0.05, T_PLAN)
+    gait = dataclasses.replace(GAIT, dcm_gain=[0.9, 0.6])
+    c = choose_step(0.05, xi, STANCE[:2], STANCE, 0, PLAN, b, 0.7, T_PLAN, T_PLAN, T_PLAN,
+                    T_PLAN, gait, OMEGA)
+    ch, sh = np.cos(0.7), np.sin(0.7)
+    R = np.array([[ch, -sh], [sh, ch]])
+    np.testing.assert_allclose(c.target_xy - PLAN, R @ np.diag([0.9, 0.6]) @ R.T @ err,
+                               atol=1e-9)
