@@ -93,7 +93,8 @@ def test_a_long_gap_restarts_from_the_measurement():
 
 
 def test_bad_settings_are_refused():
-    for bad in (dict(position_time=-0.01), dict(velocity_time=-1.0), dict(max_gap=0.0)):
+    for bad in (dict(position_time=-0.01), dict(velocity_time=-1.0), dict(max_gap=0.0),
+                dict(position_time=float("nan")), dict(max_gap=float("inf"))):
         params = WalkingParams.load()
         params = replace(params, com_filter=replace(params.com_filter, **bad))
         with pytest.raises(ValueError, match="com_filter"):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 
 from pr2_drake.bench.walking import push_once
 from pr2_drake.controllers.planning.step_adjust import choose_step, reach_box
@@ -108,3 +109,11 @@ def test_partial_gain_acts_in_the_heading_frame():
     R = np.array([[ch, -sh], [sh, ch]])
     np.testing.assert_allclose(c.target_xy - PLAN, R @ np.diag([0.9, 0.6]) @ R.T @ err,
                                atol=1e-9)
+
+
+def test_bad_dcm_gain_is_refused():
+    for bad in ([1.0], [1.0, -0.5], [float("nan"), 1.0]):
+        params = WalkingParams.load()
+        params = dataclasses.replace(params, gait=dataclasses.replace(params.gait, dcm_gain=bad))
+        with pytest.raises(ValueError, match="dcm_gain"):
+            params.check()

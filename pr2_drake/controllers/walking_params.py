@@ -6,6 +6,7 @@ task-space acceleration laws ``a_d = kp (x_d - x) + kd (v_d - v) + a_ff``.
 (No ``from __future__ import annotations`` here: ``yaml_load_typed`` reads the field types.)
 """
 
+import math
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -229,8 +230,9 @@ class WalkingParams(Params):
             raise ValueError(f"control_period must be > 0, got {self.control_period}")
         if g.single_support <= 0 or g.double_support <= 0:
             raise ValueError("gait single_support and double_support must be > 0")
-        if len(g.dcm_gain) != 2:
-            raise ValueError(f"gait.dcm_gain needs 2 values (x, y), got {g.dcm_gain}")
+        if len(g.dcm_gain) != 2 or not all(0.0 <= k < math.inf for k in g.dcm_gain):
+            raise ValueError(f"gait.dcm_gain needs 2 finite values >= 0 (x, y), got "
+                             f"{g.dcm_gain}")
         if not 0.0 < g.recovery_min_step_width <= g.min_step_width:
             raise ValueError("gait.recovery_min_step_width must be in (0, min_step_width]")
         if g.min_step_width > g.step_width:
@@ -239,7 +241,8 @@ class WalkingParams(Params):
             raise ValueError(f"gait.com_bias_axes must be 'x', 'y' or 'xy', got "
                              f"{g.com_bias_axes!r}")
         f = self.com_filter
-        if min(f.position_time, f.velocity_time) < 0 or f.max_gap <= 0:
+        if not (0.0 <= f.position_time < math.inf and 0.0 <= f.velocity_time < math.inf
+                and 0.0 < f.max_gap < math.inf):
             raise ValueError("com_filter.position_time and velocity_time must be >= 0 and "
                              f"max_gap > 0, got {f}")
         if min(g.com_bias_rate, g.com_bias_error_max, g.com_bias_max) < 0:
