@@ -155,3 +155,61 @@ def test_one_step_down_of_0_12_m_lands_both_soles_on_the_floor_without_a_fall():
         for point in sim.sole_points(side):
             assert point[0] > 0.6 + 0.01 and point[2] == pytest.approx(0.0, abs=0.01)
     assert int(sim.status()[3]) == 0  # standing
+
+
+def _stop_before_riser():
+    """A tread planner, a stance sole and the planned step-to stop beside it, short of the
+    0.10 m riser at x = 1.0 (both on the ground)."""
+    terrain = stairs_terrain(1.0, 2, 0.10, 0.40, 2.0)
+    planner = TreadFootstepPlanner(PARAMS.gait, 0.01, terrain)
+    stop_x = 1.0 - HALF_FOOT - planner.params.approach_margin - 0.002
+    stance = np.array([stop_x - 0.01, -0.11, 0.0, 0.0])
+    planned = np.array([stop_x, 0.11, 0.0, 0.0])
+    planner.observe([planned - [0.15, 0, 0, 0], stance])
+    return terrain, planner, stance, planned
+
+
+def _catch(planner, planned, stance, wishes, progress=0.05):
+    out = None
+    for w in wishes:
+        out = planner.catch_step(np.array([planned[0] + w, planned[1]]), planned, stance,
+                                 progress)
+    return out
+
+
+def test_a_stop_before_a_riser_steps_up_at_once_when_the_dcm_runs_ahead():
+    from pr2_drake.controllers.planning.tread_steps import CATCH_MIN_TICKS
+    terrain, planner, stance, planned = _stop_before_riser()
+    p = planner.params
+    far = p.catch_excess + 0.06  # the wish [m] past the stop's front limit
+    # Not before CATCH_MIN_TICKS calls ...
+    assert _catch(planner, planned, stance, [far] * (CATCH_MIN_TICKS - 1)) is None
+    # ... then onto the tread: heel (plus the margin) past the edge, within the stride limit.
+    step = _catch(planner, planned, stance, [far])
+    assert step is not None
+    assert step[2] == pytest.approx(0.10) and terrain.on_one_level(step)
+    assert 1.0 + p.edge_margin <= step[0] - HALF_FOOT <= 1.0 + p.edge_margin + 0.01
+    assert step[1] == planned[1] and step[3] == planned[3]
+    assert step[0] - stance[0] <= PARAMS.gait.max_step_forward + 0.05
+
+
+def test_a_stop_keeps_its_plan_for_noise_a_small_excess_or_a_late_swing():
+    _, planner, stance, planned = _stop_before_riser()
+    p = planner.params
+    # Single ticks past the threshold whose mean is below it (sensor noise): kept.
+    noisy = [p.catch_excess + 0.05, p.catch_excess - 0.08] * 6
+    assert _catch(planner, planned, stance, noisy) is None
+    _, planner, stance, planned = _stop_before_riser()
+    assert _catch(planner, planned, stance, [p.catch_excess - 0.01] * 20) is None
+    _, planner, stance, planned = _stop_before_riser()
+    late = p.catch_phase + 0.01
+    assert _catch(planner, planned, stance, [p.catch_excess + 0.2] * 20, late) is None
+
+
+def test_a_step_up_is_not_caught_again_and_a_stride_too_long_is_refused():
+    _, planner, stance, planned = _stop_before_riser()
+    far = [planner.params.catch_excess + 0.1] * 10
+    up = np.array([1.0 + HALF_FOOT + 0.04, 0.11, 0.10, 0.0])
+    assert _catch(planner, up, stance, far) is None  # already changes level
+    behind = stance - [0.2, 0, 0, 0]  # the stance sole 0.2 m further back: out of reach
+    assert _catch(planner, planned, behind, far) is None

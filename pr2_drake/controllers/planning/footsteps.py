@@ -100,6 +100,14 @@ class FootstepPlanner:
         z, yaw) may go (e.g. kept on its tread); step adjustment calls it. Default: anywhere."""
         return target_xy
 
+    def catch_step(self, wish_xy: np.ndarray, planned: np.ndarray, stance: np.ndarray,
+                   progress: float) -> np.ndarray | None:
+        """A footstep (x, y, z, yaw) that replaces ``planned`` mid-swing when the landing point
+        step adjustment wishes for (xy, W) lies beyond what ``planned``'s level allows (e.g. a
+        step-to stop before a riser while the DCM runs ahead: step onto the next tread now);
+        ``stance`` is the stance sole, ``progress`` the swing phase. Default: None (keep it)."""
+        return None
+
     def swing_clearance(self, start: np.ndarray, target: np.ndarray) -> float | None:
         """Height [m, W] the swing sole from ``start`` to ``target`` (x, y, z, yaw) must clear
         (a high lift-move-lower swing, e.g. stepping over an obstacle: :mod:`pr2_drake.

@@ -523,7 +523,12 @@ class GaitPlanner:
                              self.heading, earliest, planned, latest, t_now_land, g, omega)
         if abs(choice.landing_time - t_now_land) > 1e-6:
             sw.retime(t, choice.landing_time)
-        target_xy = self.footsteps.constrain(choice.target_xy - (plan_zmp - plan[:2]), plan)
+        wish_xy = choice.target_xy - (plan_zmp - plan[:2])
+        caught = self.footsteps.catch_step(wish_xy, plan, stance, sw.progress)
+        if caught is not None:  # the plan's level cannot take the DCM: land on the next one
+            self.swing_plan = plan = caught
+            self.dcm_offset = self._planned_dcm_offset()
+        target_xy = self.footsteps.constrain(wish_xy, plan)
         # Move the swing target at a bounded speed so the swing curve stays smooth.
         step = target_xy - self.swing.target[:2]
         max_step = g.retarget_speed * max(t - self._t_retarget, 0.0)

@@ -10,6 +10,9 @@ limit. Its height is the terrain's under it. Over a riser the robot steps to (:m
 the swing sole first comes beside the stance sole before the edge, one sole steps up (or down)
 onto the next tread, and the other joins it, so that no swing travels more than one riser
 stride. Step-ups and step-downs land with the whole sole on the tread, away from the nosing.
+When the DCM runs ahead of a step-to stop (a push, a fast approach), the stopping swing steps
+onto the next level at once instead (:meth:`catch_step`, early in the swing): stopping would
+leave the step up to a swing shortened until its toe catches the nosing.
 
 A riser taller than ``max_step_height`` is refused: the constructor raises ValueError naming
 the terrain and the riser (:meth:`PatchTerrain.risers`); at run time a step that would need one
@@ -48,7 +51,7 @@ from typing import ClassVar
 import numpy as np
 
 from pr2_drake.controllers.planning.footsteps import FootstepPlanner, VelocityFootstepPlanner
-from pr2_drake.controllers.planning.terrain import LEVEL_TOLERANCE, PatchTerrain
+from pr2_drake.controllers.planning.terrain import LEVEL_TOLERANCE, SAMPLE_STEP, PatchTerrain
 from pr2_drake.controllers.walking_params import GaitParams
 from pr2_drake.params import Params
 
@@ -56,6 +59,8 @@ from pr2_drake.params import Params
 BESIDE = 0.05
 #: [m] step adjustment moves a step up or down at most this far forward of its plan.
 LEVEL_CHANGE_SLACK = 0.03
+#: :meth:`TreadFootstepPlanner.catch_step` decides after this many calls (control ticks).
+CATCH_MIN_TICKS = 5
 
 
 @dataclass
@@ -69,6 +74,8 @@ class TreadPlannerParams(Params):
     min_progress: float = 0.03  # a step moved back must still advance this much
     approach_margin: float = 0.03  # the sole stopping short of a riser keeps its toe (heel,
     # going down) this far from the edge: room for the toe to rise before it moves on
+    catch_excess: float = math.inf  # a swing planned short of an edge steps onto the next level
+    catch_phase: float = 0.0  # when the DCM wants it this far beyond, before this swing phase
 
 
 
@@ -99,6 +106,8 @@ class TreadFootstepPlanner(FootstepPlanner):
         self.velocity = VelocityFootstepPlanner(gait, start_threshold)
         self._range_cache: dict[tuple, tuple[float, float]] = {}
         self._footholds: list = [None, None]
+        self._catch_key: tuple | None = None  # the stop :meth:`catch_step` averages over ...
+        self._catch_sum = (0.0, 0)  # ... and its excess sum [m] and count
         for x, dz in terrain.risers():
             if abs(dz) > p.max_step_height + 1e-9:
                 raise ValueError(
@@ -185,6 +194,43 @@ class TreadFootstepPlanner(FootstepPlanner):
         if clipped == along:
             return target_xy
         return np.array([target_xy[0] + c * (clipped - along), target_xy[1] + s * (clipped - along)])
+
+    def catch_step(self, wish_xy: np.ndarray, planned: np.ndarray, stance: np.ndarray,
+                   progress: float) -> np.ndarray | None:
+        """The step onto the next level, when ``planned`` stays on the stance sole's level short
+        of an edge (a step-to stop) but step adjustment wishes the landing more than
+        ``catch_excess`` past the front limit of that level, before swing phase
+        ``catch_phase``: the DCM runs ahead (a push, a fast approach), and stopping short would
+        leave the step up to a shortened swing that catches its toe on the nosing. The new
+        foothold has its heel (plus ``edge_margin``) just past the edge, within the stride limit
+        and ``max_step_height``; otherwise None (keep the plan)."""
+        p = self.params
+        if progress >= p.catch_phase or abs(float(planned[2]) - float(stance[2])) > 0.02:
+            return None
+        lo, hi = self._level_range(planned)
+        x, y, yaw = float(planned[0]), float(planned[1]), float(planned[3])
+        c, s = math.cos(yaw), math.sin(yaw)
+        # The excess averaged over this swing's calls so far: one tick's wish moves by
+        # centimetres with the sensor noise (the DCM's error grows ~5x to the landing).
+        key = (x, y)
+        total, n = self._catch_sum if self._catch_key == key else (0.0, 0)
+        total, n = total + c * (wish_xy[0] - x) + s * (wish_xy[1] - y) - hi, n + 1
+        self._catch_key, self._catch_sum = key, (total, n)
+        if n < CATCH_MIN_TICKS or total / n < p.catch_excess:
+            return None
+        t = self.terrain
+        half = 0.5 * t.foot_length + p.edge_margin
+        edges = t.edges_along(x, y, yaw, 0.0, hi + half + 0.02)
+        if not edges:
+            return None
+        d = edges[0] + half + SAMPLE_STEP  # (an edge is known to a sample)
+        x, y = x + c * d, y + s * d
+        z = t.heights_along(x, y, yaw, -half, half)
+        advance = c * (x - float(stance[0])) + s * (y - float(stance[1]))
+        if (z.max() - z.min() >= LEVEL_TOLERANCE or advance > self.gait.max_step_forward + 0.05
+                or abs(float(z[0]) - float(stance[2])) > p.max_step_height + 1e-9):
+            return None
+        return np.array([x, y, float(z[0]), yaw])
 
     def _changes_level(self, planned: np.ndarray) -> bool:
         """Whether ``planned`` is on another level than both soles now."""
