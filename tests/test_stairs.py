@@ -213,3 +213,12 @@ def test_a_step_up_is_not_caught_again_and_a_stride_too_long_is_refused():
     assert _catch(planner, up, stance, far) is None  # already changes level
     behind = stance - [0.2, 0, 0, 0]  # the stance sole 0.2 m further back: out of reach
     assert _catch(planner, planned, behind, far) is None
+
+
+@pytest.mark.parametrize("bad", [dict(catch_excess=0.0), dict(catch_excess=float("nan")),
+                                 dict(catch_phase=1.5), dict(catch_phase=float("nan"))])
+def test_bad_catch_settings_are_refused_naming_them(bad):
+    import dataclasses
+    params = dataclasses.replace(TreadPlannerParams.load(), **bad)
+    with pytest.raises(ValueError, match="catch_excess must be > 0.*catch_phase"):
+        TreadFootstepPlanner(PARAMS.gait, 0.01, stairs_terrain(1.0, 2, 0.10, 0.40, 2.0), params)

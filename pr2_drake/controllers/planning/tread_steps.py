@@ -108,6 +108,10 @@ class TreadFootstepPlanner(FootstepPlanner):
         self._footholds: list = [None, None]
         self._catch_key: tuple | None = None  # the stop :meth:`catch_step` averages over ...
         self._catch_sum = (0.0, 0)  # ... and its excess sum [m] and count
+        if not (p.catch_excess > 0.0 and 0.0 <= p.catch_phase <= 1.0):  # (NaN fails too)
+            raise ValueError(
+                f"TreadPlannerParams: catch_excess must be > 0 (inf: never) and catch_phase in "
+                f"[0, 1], got catch_excess = {p.catch_excess}, catch_phase = {p.catch_phase}")
         for x, dz in terrain.risers():
             if abs(dz) > p.max_step_height + 1e-9:
                 raise ValueError(
@@ -207,7 +211,7 @@ class TreadFootstepPlanner(FootstepPlanner):
         p = self.params
         if progress >= p.catch_phase or abs(float(planned[2]) - float(stance[2])) > 0.02:
             return None
-        lo, hi = self._level_range(planned)
+        _, hi = self._level_range(planned)
         x, y, yaw = float(planned[0]), float(planned[1]), float(planned[3])
         c, s = math.cos(yaw), math.sin(yaw)
         # The excess averaged over this swing's calls so far: one tick's wish moves by
