@@ -9,8 +9,10 @@ state) and binned:
 - obstacle: points from ``obstacle_min`` to ``obstacle_max`` above the floor (walls, furniture,
   legs, objects): the cell is occupied;
 - surface: points on horizontal faces (surface normal within acos(``horizontal_normal_z``) of
-  vertical) between ``surface_min`` and ``surface_max``: the cell keeps the lowest such height
-  (a table top under the objects on it).
+  vertical) between ``surface_min`` and ``surface_max``: per frame the cell's lowest such height
+  (a table top under the objects on it), blended into the cell's height by ``surface_blend``
+  (an exponential average over frames: the camera pose comes from the robot's noisy state, and
+  the lowest height over many frames read a 0.50 m top as 0.48 m).
 
 Points within ``self_radius`` of the base (the robot's own arms, a held object) are left out,
 and the floor under the robot is free where it stands. A cell neither seen free nor occupied is
@@ -59,19 +61,20 @@ class MappingParams(Params):
     surface_bin: float = 0.01
     surface_min_area: float = 0.12
     surface_min_extent: float = 0.3
+    surface_blend: float = 0.1
     frontier_min_cells: int = 12
 
 
 @dataclass(eq=False)
 class HeightMap:
-    """Counts of floor and obstacle points and the lowest surface height per cell (module
+    """Counts of floor and obstacle points and the surface height per cell (module
     docstring). ``version`` counts the frames integrated."""
 
     origin: tuple[float, float]
     resolution: float
     floor: np.ndarray  # int32 (rows, cols): floor points seen
     obstacle: np.ndarray  # int32: obstacle points seen
-    surface: np.ndarray  # float32: lowest horizontal surface [m], inf where none
+    surface: np.ndarray  # float32: horizontal surface height [m], inf where none
     version: int = 0
     _cache: dict = field(default_factory=dict, repr=False)
 
@@ -128,7 +131,11 @@ class HeightMap:
         order = np.argsort(-z[flat], kind="stable")  # the lowest written last
         lowest = np.full(n, np.inf, np.float32)
         lowest[idx[flat][order]] = z[flat][order]
-        surface = np.minimum(surface, lowest).reshape(self.shape)
+        both = np.isfinite(surface) & np.isfinite(lowest)
+        seen, new = surface[both], lowest[both]
+        surface = np.minimum(surface, lowest)  # first sight of a cell: its height as seen
+        surface[both] = seen + np.float32(P.surface_blend) * (new - seen)
+        surface = surface.reshape(self.shape)
         floor += self._disc(p_WB, P.footprint_radius)
         return self._copy(floor=floor, obstacle=obstacle, surface=surface)
 
