@@ -367,3 +367,43 @@ def test_an_object_held_near_the_body_is_set_down_place_inset_inside_the_edge():
     drop = seq._place_drop(m, Now(10.0, np.array([x, y, 0.9]), yaw, True, 0.0))
     shift = drop[:2] - seq._drop_point(m, m.goal[:2], yaw, tab)[:2]
     assert np.allclose(shift, -n * (seq.p.place_inset - (0.25 - seq.p.place_standoff)))
+
+
+def test_a_carry_whose_path_ends_short_of_its_goal_goes_on_from_that_end():
+    """A goal inside the map's grown obstacles: the path ends at the free cell nearest it, where
+    the path follower stops. Arrived there, the walk ends at once (even more than walk_arrive
+    from the goal, where the stall watch never acts); short of that end it walks on."""
+    seq, ctx, sim = placing()
+    m = seq.mutable_memory(ctx)
+    tab = seq.destination
+    goal = np.array([tab.center[0], tab.center[1], -math.pi / 2])  # its centre
+    start = np.array([tab.center[0], tab.center[1] + 2.0, 0.57])
+    assert seq._plan(m, start, goal)
+    m.stage = Stage.CARRY
+    end = np.asarray(m.path[-1])
+    short = float(np.linalg.norm(end - goal[:2]))
+    assert short > seq.p.walk_arrive  # the case the stall watch missed
+    hold(seq, ctx, end[0], end[1] + 0.3, goal[2])  # 0.3 m before the path's end: walking on
+    sim.AdvanceTo(sim.get_context().get_time() + 0.3)
+    assert seq.memory(ctx).stage == Stage.CARRY
+    hold(seq, ctx, end[0], end[1] + 0.05, goal[2])  # at the end of the path
+    sim.AdvanceTo(sim.get_context().get_time() + 0.3)
+    m = seq.memory(ctx)
+    log = " ".join(m.log[-3:])
+    assert m.stage == Stage.APPROACH_TABLE and "at the path's end" in log, log
+
+
+def test_a_walk_whose_path_reaches_its_goal_does_not_end_at_a_near_path_end():
+    """The path's last point within a cell of the goal: the walk goes on to the goal's own
+    approach_radius (the rule above leaves ordinary walks as they were)."""
+    seq, ctx, sim = placing()
+    m = seq.mutable_memory(ctx)
+    tab = seq.destination
+    goal = np.array([tab.center[0], tab.center[1] + 0.5 * tab.size[1] + 0.9, -math.pi / 2])
+    start = np.array([tab.center[0], tab.center[1] + 2.5, 0.57])
+    assert seq._plan(m, start, goal)
+    m.stage = Stage.CARRY
+    assert np.linalg.norm(np.asarray(m.path[-1]) - goal[:2]) <= seq.mp.resolution
+    hold(seq, ctx, goal[0], goal[1] + 0.2, goal[2])  # 0.2 m out: past approach_radius
+    sim.AdvanceTo(sim.get_context().get_time() + 0.3)
+    assert seq.memory(ctx).stage == Stage.CARRY

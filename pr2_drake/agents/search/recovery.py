@@ -17,7 +17,9 @@ model, the map it made, the detections): no simulator state.
   place turns on the spot where a heading within ``place_turn_deg`` of facing the table brings
   the object over the top, and both walk there again on a path (forward walking steers out a
   sideways drift).
-- A walk circling its goal within ``walk_arrive`` ends there: the next stage's steps take over.
+- A walk circling its goal (or its path's end) within ``walk_arrive`` ends there, and a walk
+  at the end of a path that the map ends short of its goal (a standoff pose inside the grown
+  obstacles) ends at once: the next stage's steps take over.
 - No path to the destination: the other sides of the coffee table, then the same counting the
   map's weak obstacles (a few stray points over floor seen many times: depth noise) as free;
   no path to a stage's goal at all: the stage gives that goal up (the next top, the next side
@@ -63,12 +65,33 @@ class RecoveryStages:
             return False
         return t - m.t_best > wait
 
+    def _path_end(self, m: SearchMemory) -> np.ndarray:
+        """Where the walk's path ends (x, y) [m]: the free cell nearest the goal (the goal
+        itself unless the map's grown obstacles cover it), or the goal with no path."""
+        return m.goal[:2] if m.path is None else np.asarray(m.path[-1], float)
+
+    def _path_end_reached(self, m: SearchMemory, p_WB, t: float) -> bool:
+        """A path that ends farther than a map cell from its goal (a standoff pose inside the
+        grown obstacles) is walked to its end (within ``approach_radius``): then on from
+        there (True), logged; the path follower stops at that end, and without this the walk
+        waited for the stall watch, or, farther than ``walk_arrive`` out, for ever."""
+        end = self._path_end(m)
+        short = float(np.linalg.norm(m.goal[:2] - end))
+        if short <= self.mp.resolution or \
+                np.linalg.norm(end - p_WB[:2]) >= self.p.approach_radius:
+            return False
+        m.log.append(f"{t:7.2f} at the path's end, {short:.2f} m short of its goal (the map's "
+                     f"free space): on from here")
+        return True
+
     def _walk_circles(self, m: SearchMemory, p_WB, t: float) -> bool:
-        """A walk within ``walk_arrive`` of its goal that has not come ``walk_progress`` nearer
-        for ``walk_stall_time``: it ends there (True), logged."""
+        """A walk within ``walk_arrive`` of its goal or of its path's end that has not come
+        ``walk_progress`` nearer the goal for ``walk_stall_time``: it ends there (True),
+        logged."""
         p = self.p
         d = float(np.linalg.norm(m.goal[:2] - p_WB[:2]))
-        if self._stalled(m, d, t, p.walk_progress, p.walk_stall_time) and d < p.walk_arrive:
+        near = min(d, float(np.linalg.norm(self._path_end(m) - p_WB[:2])))
+        if self._stalled(m, d, t, p.walk_progress, p.walk_stall_time) and near < p.walk_arrive:
             m.log.append(f"{t:7.2f} walk stalled {d:.2f} m from its goal: on from here")
             return True
         return False

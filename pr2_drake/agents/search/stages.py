@@ -375,9 +375,12 @@ class SearchStages:
 
     def _walk(self, m: SearchMemory, p_WB, yaw: float, t: float) -> bool:
         """Follow ``m.path`` to ``m.goal`` (planned again when the map shows it blocked); True
-        within ``approach_radius`` of its end, or circling near it (:meth:`_walk_circles`).
+        within ``approach_radius`` of the goal, or of the path's end where the map moved that
+        off the goal (:meth:`_path_end_reached`), or circling near it (:meth:`_walk_circles`).
         No path left: the stage gives its goal up (:meth:`_give_up_goal`)."""
         if np.linalg.norm(m.goal[:2] - p_WB[:2]) < self.p.approach_radius:
+            return True
+        if self._path_end_reached(m, p_WB, t):
             return True
         if self._walk_circles(m, p_WB, t):
             return True
