@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from pr2_drake.agents.search.memory import Stage
+from pr2_drake.agents.search.memory import SearchAgentParams, Stage
 from pr2_drake.agents.search.tables import Table, best_side, sides_by_preference
 from pr2_drake.grasp import PickState
 from tests.test_search_agent import (
@@ -407,3 +407,45 @@ def test_a_walk_whose_path_reaches_its_goal_does_not_end_at_a_near_path_end():
     hold(seq, ctx, goal[0], goal[1] + 0.2, goal[2])  # 0.2 m out: past approach_radius
     sim.AdvanceTo(sim.get_context().get_time() + 0.3)
     assert seq.memory(ctx).stage == Stage.CARRY
+
+
+def at_the_drop(drop_below_hand: float):
+    """The sequencer in PLACE, its hand path ended 0.1 s ago at a drop point this far [m]
+    below where the hand is (measured from the joint state)."""
+    seq, ctx, sim = placing()
+    x, y, yaw = seq.memory(ctx).goal
+    hold(seq, ctx, x, y, yaw)
+    m = seq.mutable_memory(ctx)
+    m.stage = Stage.DONE  # one update: the robot model at this state
+    sim.AdvanceTo(0.02)
+    p_WH = seq.model.hand_point(m.hand)[0].copy()
+    m = seq.mutable_memory(ctx)
+    t = sim.get_context().get_time()
+    m.stage, m.t_stage, m.place_lower = Stage.PLACE, t, 0.0
+    m.hand_path = [p_WH + [0.0, 0.0, 0.08], p_WH - [0.0, 0.0, drop_below_hand]]
+    m.hand_t0 = t - 0.1 - seq.p.reach_time * (len(m.hand_path) - 1) - 0.3
+    return seq, ctx, sim, t
+
+
+def test_a_place_releases_at_once_where_the_hand_reached_its_drop_point():
+    seq, ctx, sim, t = at_the_drop(0.5 * SearchAgentParams().place_tolerance)
+    sim.AdvanceTo(t + 0.03)
+    m = seq.memory(ctx)
+    assert m.stage == Stage.RELEASE and m.place_lower == 0.0
+
+
+def test_a_place_with_the_hand_held_high_lowers_its_target_then_releases():
+    """The arm sags 2.5 cm above its target (heavier load, weaker motors than the model's):
+    the target moves down by the height error, within place_lower_max, and the release
+    waits for place_settle_time (the hand here is held where it is: the limit decides)."""
+    seq, ctx, sim, t = at_the_drop(0.025)
+    p = seq.p
+    drop = seq.memory(ctx).hand_path[-1].copy()
+    sim.AdvanceTo(t + 0.5)
+    m = seq.memory(ctx)
+    assert m.stage == Stage.PLACE and 0.02 < m.place_lower <= p.place_lower_max
+    assert np.allclose(m.targets[m.hand], drop - [0.0, 0.0, m.place_lower])
+    sim.AdvanceTo(t + p.place_settle_time + 0.1)
+    m = seq.memory(ctx)
+    assert m.stage == Stage.RELEASE and m.place_lower == pytest.approx(p.place_lower_max)
+    assert "moved 0.040 m down" in " ".join(m.log[-3:]), m.log[-3:]

@@ -58,6 +58,10 @@ class SearchAgentParams(Params):
     place_inset: float = 0.17
     place_reach: float = 0.12
     place_clearance: float = -0.001
+    place_tolerance: float = 0.008
+    place_settle_time: float = 1.5
+    place_gain: float = 3.0
+    place_lower_max: float = 0.04
     release_hold: float = 0.6
     back_speed: float = 0.10
     back_time: float = 2.0
@@ -140,8 +144,10 @@ class SearchMemory(SequencerMemory):
         sides_tried: the table sides (outward normals) a pick missed from; retry_side: the
             side to walk round to after stepping back from a missed pick (None: none).
         r_pick, o_pick: hand and object at the pick in the base's heading frame (m);
-        hand_over_top: the hand centre above the pick table's top (m); up_H: the held
-            object's vertical in the hand frame (None: not kept vertical).
+        hand_over_top: the hand centre above the pick table's top (m); place_lower: how far
+            [m] a place has moved the hand's target below its drop point (the hand stopped
+            above it); up_H: the held object's vertical in the hand frame (None: not kept
+            vertical).
         best_err, t_best: the least distance [m] to the stage's goal seen since the stage
             began (by a walk or an approach: the progress watch of :mod:`.recovery`) and when
             it last shrank by the stage's step [s]; approach_tries: walks made again to a pick
@@ -185,6 +191,7 @@ class SearchMemory(SequencerMemory):
     r_pick: np.ndarray = field(default_factory=lambda: np.zeros(3))
     o_pick: np.ndarray = field(default_factory=lambda: np.zeros(3))
     hand_over_top: float = 0.0
+    place_lower: float = 0.0
     up_H: Optional[np.ndarray] = None
     best_err: float = float("inf")
     t_best: float = 0.0

@@ -209,6 +209,26 @@ class RecoveryStages:
         here[:2] += shift
         return here
 
+    def _hand_down(self, m: SearchMemory, now: Now) -> bool:
+        """At the end of a place's hand path (the drop point): True once the hand, as
+        measured, is within ``place_tolerance`` above the drop point, or ``place_settle_time``
+        after the path ended (logged); until then the hand's target moves down by
+        ``place_gain`` times the height error per second, at most ``place_lower_max``: the
+        hand tracks its target a few cm high when the arm's load is heavier or its motors
+        weaker than the model's, and the object would drop that far."""
+        p = self.p
+        drop = np.asarray(m.hand_path[-1], float)
+        error = float(self.model.hand_point(m.hand)[0][2] - drop[2])
+        ended = m.hand_t0 + p.reach_time * (len(m.hand_path) - 1)  # the target got there
+        if error <= p.place_tolerance or now.t - ended >= p.place_settle_time:
+            if m.place_lower > 0.0:
+                m.log.append(f"{now.t:7.2f} place: the hand {error:+.3f} m off its drop point, "
+                             f"its target moved {m.place_lower:.3f} m down")
+            return True
+        m.place_lower = min(m.place_lower + p.place_gain * error * p.period, p.place_lower_max)
+        m.targets[m.hand] = drop - [0.0, 0.0, m.place_lower]
+        return False
+
     # ---- after a place ----------------------------------------------------------------------
     def _verify(self, m: SearchMemory, now: Now, context) -> None:
         """Stand still, take frames as a look does (``verify_frames``); the object seen:

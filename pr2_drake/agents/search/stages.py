@@ -239,11 +239,12 @@ class SearchStages:
             m.t_stage = now.t
         elif now.t - m.t_stage >= self.p.settle_time:
             drop = self._place_drop(m, now)
+            m.place_lower = 0.0
             self._start_hand_path(m, [drop + [0.0, 0.0, 0.08], drop], now.t)
             self._go(m, Stage.PLACE, now.t)
 
     def _place(self, m: SearchMemory, now: Now, context) -> None:
-        if self._follow_hand(m, now.t):
+        if self._follow_hand(m, now.t) and self._hand_down(m, now):
             self._go(m, Stage.RELEASE, now.t)
 
     def _release(self, m: SearchMemory, now: Now, context) -> None:
