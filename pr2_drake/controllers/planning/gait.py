@@ -382,6 +382,26 @@ class GaitPlanner:
         self.t_phase = t
         self.phase_duration = duration
 
+    def _shift_time(self, g) -> float:
+        """Double support's duration [s]: ``shift_time_factor`` times the least time the DCM
+        needs to reach its lift-off target with the ZMP held on the old stance sole (the DCM
+        moves away from the ZMP: xi - z grows as exp(omega t)), within [double_support,
+        double_support + max_shift_extension]. A DCM that a wide step left near the old sole
+        starts slowly, and a shift of the planned length ended half-way (task 1, randomised)."""
+        omega = math.sqrt(self.gravity / g.com_height)
+        _, xi0, xi1 = self.start_dcm
+        z = zmp_point(self.footholds[1 - self.stance], g)
+        d = xi1 - xi0
+        n = math.hypot(float(d[0]), float(d[1]))
+        if n < 1e-6:
+            return g.double_support
+        longest = g.double_support + g.max_shift_extension
+        a0 = float(np.dot(xi0 - z[:2], d / n))  # [m] DCM ahead of the old sole, along the shift
+        if a0 < 0.01:
+            return g.double_support  # at or behind the old sole (a push): step as planned
+        need = g.shift_time_factor * math.log((a0 + n) / a0) / omega
+        return min(max(need, g.double_support), longest)
+
     def _shift_comdd(self, t: float, com, comd) -> np.ndarray:
         """CoM acceleration (xy) of the weight shift: DCM tracking with a bounded ZMP."""
         g = self.params.gait
@@ -479,6 +499,8 @@ class GaitPlanner:
         self.swing_plan = self.footsteps.next_steps(new, landed, self.heading,
                                                     self._plan_command(), 1)[0]
         self._begin_shift(t, com, comd, Phase.DOUBLE, g.double_support)
+        if g.shift_time_factor > 0.0:
+            self.phase_duration = self._shift_time(g)
 
     def _plan_command(self) -> np.ndarray:
         """The command the footstep planner uses: the command plus the speed correction."""
