@@ -1,7 +1,7 @@
 """The gait planner's decisions under sensor noise and an agent's per-tick commands.
 
-Parts tested alone (no simulation): the lift-off rule of double support
-(:mod:`pr2_drake.controllers.planning.liftoff`) and the integral speed correction
+Parts tested alone (no simulation): the lift-off rule of double support and the shift's
+duration (:mod:`pr2_drake.controllers.planning.liftoff`) and the integral speed correction
 (:mod:`pr2_drake.controllers.planning.speed_correction`).
 """
 
@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from pr2_drake.controllers.planning.liftoff import LiftoffRule
+from pr2_drake.controllers.planning.liftoff import LiftoffRule, shift_duration
 from pr2_drake.controllers.planning.speed_correction import SpeedCorrection
 from pr2_drake.controllers.walking_params import WalkingParams
 
@@ -76,6 +76,49 @@ def test_extension_ends_when_the_error_is_small_or_stops_falling():
     rule.reset()
     rule.update(0.08, DT)
     assert rule.done(0.1 + g.max_shift_extension, 0.1)  # the extension's cap
+
+
+def _rough_gait():
+    return WalkingParams.load(overrides=["params/controllers/walking_rough.yaml"]).gait
+
+
+def _dcm_after(xi0, p_old, omega: float, seconds: float) -> np.ndarray:
+    """The DCM [m] after ``seconds`` with the ZMP held at ``p_old`` (LIPM, integrated by ticks)."""
+    xi = np.array(xi0, dtype=float)
+    for _ in range(int(round(seconds / DT))):
+        xi += DT * omega * (xi - p_old)
+    return xi
+
+
+def test_a_shift_from_near_the_old_sole_is_given_the_time_it_needs():
+    """A DCM 4 cm from the old sole cannot move 12 cm in 0.10 s with the ZMP on that sole;
+    the shift's duration is the least time that can (the LIPM, integrated, arrives in it)."""
+    g = _rough_gait()
+    assert g.shift_time_factor > 0.0
+    omega = math.sqrt(9.81 / g.com_height)
+    p_old, xi0, xi_end = np.zeros(2), np.array([0.0, -0.04]), np.array([0.0, -0.16])
+    T = shift_duration(xi0, xi_end, p_old, omega, g)
+    assert g.double_support < T <= g.double_support + g.max_shift_extension
+    assert np.linalg.norm(_dcm_after(xi0, p_old, omega, g.double_support) - xi_end) > 0.05
+    assert np.linalg.norm(_dcm_after(xi0, p_old, omega, T) - xi_end) < 0.005
+
+
+def test_a_shift_with_time_enough_or_after_a_push_keeps_the_planned_duration():
+    g = _rough_gait()
+    omega = math.sqrt(9.81 / g.com_height)
+    p_old = np.array([0.3, 0.1])
+    # Far ahead of the old sole: the DCM covers 5 cm in well under 0.10 s.
+    assert shift_duration(p_old + [0.0, -0.3], p_old + [0.0, -0.35], p_old, omega, g) \
+        == g.double_support
+    # Behind the old sole (pushed the other way): no finite least time; step as planned.
+    assert shift_duration(p_old + [0.0, 0.02], p_old + [0.0, -0.1], p_old, omega, g) \
+        == g.double_support
+    # Just ahead of it: the longest shift, not more.
+    assert shift_duration(p_old + [0.0, -0.011], p_old + [0.0, -0.3], p_old, omega, g) \
+        == g.double_support + g.max_shift_extension
+    # Off (walking.yaml's default): the planned duration whatever the DCM.
+    assert shift_duration([0.0, -0.04], [0.0, -0.16], np.zeros(2), omega, _gait()) \
+        == _gait().double_support
 
 
 def _walk_steps(corr: SpeedCorrection, command_at, v_W, steps: int, t0: float = 0.0):

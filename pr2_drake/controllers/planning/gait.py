@@ -40,7 +40,7 @@ import numpy as np
 from pr2_drake.controllers.frames import rot2, rot_y, rot_z, wrap, yaw_of
 from pr2_drake.controllers.planning.com_bias import ComBiasEstimator
 from pr2_drake.controllers.planning.com_plan import ComPlanner, zmp_point
-from pr2_drake.controllers.planning.liftoff import LiftoffRule
+from pr2_drake.controllers.planning.liftoff import LiftoffRule, shift_duration
 from pr2_drake.controllers.planning.speed_correction import SpeedCorrection
 from pr2_drake.controllers.planning.footsteps import (
     SIDE_SIGN,
@@ -383,24 +383,11 @@ class GaitPlanner:
         self.phase_duration = duration
 
     def _shift_time(self, g) -> float:
-        """Double support's duration [s]: ``shift_time_factor`` times the least time the DCM
-        needs to reach its lift-off target with the ZMP held on the old stance sole (the DCM
-        moves away from the ZMP: xi - z grows as exp(omega t)), within [double_support,
-        double_support + max_shift_extension]. A DCM that a wide step left near the old sole
-        starts slowly, and a shift of the planned length ended half-way (task 1, randomised)."""
+        """Double support's duration [s] for the shift just begun (:func:`shift_duration`)."""
         omega = math.sqrt(self.gravity / g.com_height)
         _, xi0, xi1 = self.start_dcm
         z = zmp_point(self.footholds[1 - self.stance], g)
-        d = xi1 - xi0
-        n = math.hypot(float(d[0]), float(d[1]))
-        if n < 1e-6:
-            return g.double_support
-        longest = g.double_support + g.max_shift_extension
-        a0 = float(np.dot(xi0 - z[:2], d / n))  # [m] DCM ahead of the old sole, along the shift
-        if a0 < 0.01:
-            return g.double_support  # at or behind the old sole (a push): step as planned
-        need = g.shift_time_factor * math.log((a0 + n) / a0) / omega
-        return min(max(need, g.double_support), longest)
+        return shift_duration(xi0, xi1, z[:2], omega, g)
 
     def _shift_comdd(self, t: float, com, comd) -> np.ndarray:
         """CoM acceleration (xy) of the weight shift: DCM tracking with a bounded ZMP."""

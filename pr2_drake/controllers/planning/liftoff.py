@@ -19,11 +19,20 @@ filtered error of this shift by ``runaway_dcm_growth`` [m]; with a noise-free me
 fires a few ticks later than a tick-to-tick comparison. The extension stays tick to tick on
 the raw error: noise only ends it sooner (at the planned duration), while a lagging filtered
 error kept sideways steps in double support so long that they stopped moving the robot.
+
+How long a shift is planned to last (:func:`shift_duration`, on when ``shift_time_factor`` > 0):
+the DCM moves away from the ZMP as xi - z ~ exp(omega t), and with the ZMP held at most on the
+old stance sole, a DCM that starts a0 ahead of that sole needs ln((a0 + n) / a0) / omega to
+move a distance n. A wide step (after a push, while turning) leaves it near the old sole, and
+a shift of the planned 0.10 s then ended half-way, which fed the next, wider step (task 1
+under randomised physics: docs/benchmarks.md, fourteenth round).
 """
 
 from __future__ import annotations
 
 import math
+
+import numpy as np
 
 
 class LiftoffRule:
@@ -68,3 +77,24 @@ class LiftoffRule:
         return (self.raw < g.liftoff_dcm_tolerance
                 or self.raw >= self.previous - 1e-4
                 or elapsed >= duration + g.max_shift_extension - 1e-9)
+
+
+def shift_duration(xi0, xi_end, p_old, omega: float, gait) -> float:
+    """Double support's duration [s]: ``shift_time_factor`` times the least time the DCM needs
+    to go from ``xi0`` to ``xi_end`` (xy, W) [m] with the ZMP held on the old stance sole's ZMP
+    point ``p_old`` (xy, W) [m], within [double_support, double_support + max_shift_extension].
+
+    A DCM less than 1 cm ahead of the old sole along the shift (at or behind it: after a push)
+    keeps the planned ``double_support``: the least time is unbounded there, and the lift-off
+    rule's runaway check already handles a DCM that moves the wrong way.
+    """
+    g = gait
+    d = np.asarray(xi_end, dtype=float) - np.asarray(xi0, dtype=float)
+    n = math.hypot(float(d[0]), float(d[1]))  # [m] the shift's length
+    if g.shift_time_factor <= 0.0 or n < 1e-6:
+        return g.double_support
+    a0 = float(np.dot(np.asarray(xi0, dtype=float) - np.asarray(p_old, dtype=float), d / n))
+    if a0 < 0.01:
+        return g.double_support
+    need = g.shift_time_factor * math.log((a0 + n) / a0) / omega
+    return min(max(need, g.double_support), g.double_support + g.max_shift_extension)
