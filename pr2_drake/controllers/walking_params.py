@@ -103,7 +103,9 @@ class GaitParams:
     runaway_dcm_growth: float = 0.004  # [m] moving away: this much over its smallest error
     dcm_error_filter: float = 0.012  # [s] low-pass of the DCM error in these rules (noise)
     shift_time_factor: float = 0.0  # > 0: double support lasts this x the DCM's least shift
-    #                                 time (gait.py _shift_time); 0: double_support
+    #                                 time (liftoff.py shift_duration); 0: double_support
+    stance_slip_replan: float = 0.0  # [m] > 0: a new stance sole that slides this far in double
+    #                                  support is re-read and the shift's target planned again
     retarget_speed: float = 3.0  # [m/s] fastest motion of the swing target
     dcm_freeze_phase: float = 0.8  # the swing target stops moving after this swing progress
     zmp_qy: float = 1.0  # ZmpPlanner weights: ZMP error and CoM acceleration

@@ -46,6 +46,15 @@ def next_footstep(stance: np.ndarray, stance_side: int, heading: float, command:
     return np.array([p[0], p[1], stance[2], wrap(yaw_new)])
 
 
+def square_stance(a: np.ndarray, b: np.ndarray, side_a: int, gait: GaitParams) -> bool:
+    """True when sole a (x, y, z, yaw; side ``side_a``) stands about beside sole b: a stance
+    to stop on."""
+    d = rot2(b[3]).T @ (a[:2] - b[:2])
+    lateral = SIDE_SIGN[side_a] * d[1]
+    return bool(abs(d[0]) < 0.06 and gait.min_step_width <= lateral <= gait.step_width + 0.08
+                and abs(wrap(a[3] - b[3])) < 0.15)
+
+
 def clamp_to_stance(target: np.ndarray, stance: np.ndarray, stance_side: int,
                     gait: GaitParams) -> np.ndarray:
     """Keep a swing target reachable from the stance sole: bounded stride, no crossing."""

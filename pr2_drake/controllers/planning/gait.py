@@ -43,14 +43,14 @@ from pr2_drake.controllers.planning.com_plan import ComPlanner, zmp_point
 from pr2_drake.controllers.planning.liftoff import LiftoffRule, shift_duration
 from pr2_drake.controllers.planning.speed_correction import SpeedCorrection
 from pr2_drake.controllers.planning.footsteps import (
-    SIDE_SIGN,
     FootstepPlanner,
     VelocityFootstepPlanner,
     clamp_to_stance,
+    square_stance,
 )
 from pr2_drake.controllers.planning.terrain import FlatTerrain
 from pr2_drake.controllers.plan import SwingReference, WholeBodyPlan
-from pr2_drake.controllers.planning.step_adjust import choose_step
+from pr2_drake.controllers.planning.step_adjust import choose_step, periodic_dcm_offset
 from pr2_drake.controllers.planning.swing import SwingTrajectory
 from pr2_drake.controllers.walking_params import WalkingParams
 from pr2_drake.controllers.model import WholeBodyModel
@@ -181,6 +181,8 @@ class GaitPlanner:
                 self.phase = Phase.STAND
                 self.t_phase = t
         elif self.phase in (Phase.START, Phase.DOUBLE):
+            if self.phase == Phase.DOUBLE and g.stance_slip_replan > 0.0:
+                self._stance_moved(t, com, comd)
             # Lift off when the DCM is where the next step needs it (or after a time-out).
             elapsed = t - self.t_phase
             omega = math.sqrt(self.gravity / g.com_height)
@@ -228,6 +230,8 @@ class GaitPlanner:
             a_xy = np.array([kp * (tx - float(com[0])) - kd * float(comd[0]),
                              kp * (ty - float(com[1])) - kd * float(comd[1])])
         elif self.phase in (Phase.START, Phase.DOUBLE):
+            if self.phase == Phase.DOUBLE and g.stance_slip_replan > 0.0:
+                self._stance_moved(t, com, comd)
             a_xy = self._shift_comdd(t, com, comd)
         elif self.phase == Phase.SINGLE:
             a_xy = self._single_comdd(t, dt, com, comd)
@@ -284,7 +288,6 @@ class GaitPlanner:
 
     def _swing_reference(self, t: float) -> SwingReference:
         """The swing sole's desired motion now (and the blocked-descent measure)."""
-        p = self.params
         side = 1 - self.stance
         X, V, _, _ = self.model.sole_spatial(side)
         p_d, v_d, a_d, yaw_d, yawd_d = self.swing.evaluate(t)
@@ -297,7 +300,6 @@ class GaitPlanner:
         # Blocked descent (early contact): above the curve and no longer moving down.
         self.swing_z_error = (float(pos[2] - p_d[2])
                               if v_d[2] <= 0.0 and V[5] > 0.5 * min(v_d[2], -0.1) else 0.0)
-        del p
         return SwingReference(side, p_d, v_d, a_d, R_d, w_d)
 
     # ---- helpers -----------------------------------------------------------------------------
@@ -382,12 +384,32 @@ class GaitPlanner:
         self.t_phase = t
         self.phase_duration = duration
 
-    def _shift_time(self, g) -> float:
-        """Double support's duration [s] for the shift just begun (:func:`shift_duration`)."""
-        omega = math.sqrt(self.gravity / g.com_height)
-        _, xi0, xi1 = self.start_dcm
-        z = zmp_point(self.footholds[1 - self.stance], g)
-        return shift_duration(xi0, xi1, z[:2], omega, g)
+    def _plan_shift(self, t: float, com, comd) -> None:
+        """Plan the next step from the new stance sole and begin the weight shift onto it
+        (``double_support``, or :func:`shift_duration` with ``shift_time_factor`` > 0)."""
+        g = self.params.gait
+        self.swing_plan = self.footsteps.next_steps(self.footholds[self.stance], self.stance,
+                                                    self.heading, self._plan_command(), 1)[0]
+        self._begin_shift(t, com, comd, Phase.DOUBLE, g.double_support)
+        if g.shift_time_factor > 0.0:
+            omega = math.sqrt(self.gravity / g.com_height)
+            _, xi0, xi1 = self.start_dcm
+            z = zmp_point(self.footholds[1 - self.stance], g)
+            self.phase_duration = shift_duration(xi0, xi1, z[:2], omega, g)
+
+    def _stance_moved(self, t: float, com, comd) -> None:
+        """Double support: a new stance sole that slid more than ``stance_slip_replan`` [m] since
+        touchdown (off a stone) is taken where it is now and the shift's target planned again
+        (same start and timing); the old target could leave the DCM behind the sole."""
+        now, was = self._sole_pose4(self.stance), self.footholds[self.stance]
+        if math.hypot(now[0] - was[0], now[1] - was[1]) > self.params.gait.stance_slip_replan:
+            self.footholds[self.stance] = now
+            self.footsteps.observe(self.footholds)
+            t0, xi0, _ = self.start_dcm
+            t_phase, duration = self.t_phase, self.phase_duration
+            self._plan_shift(t, com, comd)
+            self.start_dcm = (t0, xi0, self.start_dcm[2])
+            self.t_phase, self.phase_duration = t_phase, duration
 
     def _shift_comdd(self, t: float, com, comd) -> np.ndarray:
         """CoM acceleration (xy) of the weight shift: DCM tracking with a bounded ZMP."""
@@ -473,7 +495,7 @@ class GaitPlanner:
         self.swing = None
         self.t_touchdown = t
         self.stance = landed
-        if not self._moving() and self._square(new, old, landed):
+        if not self._moving() and square_stance(new, old, landed, g):
             mid = 0.5 * (zmp_point(new, g) + zmp_point(old, g))
             times = np.array([t, t + 0.5 * g.stop_settle, t + g.stop_settle + 1.0])
             pts = np.array([zmp_point(old, g), mid, mid]).T
@@ -483,11 +505,7 @@ class GaitPlanner:
             self.phase_duration = g.stop_settle
             return
         self.speed_correction.touchdown(t, com, self.command, self.heading)
-        self.swing_plan = self.footsteps.next_steps(new, landed, self.heading,
-                                                    self._plan_command(), 1)[0]
-        self._begin_shift(t, com, comd, Phase.DOUBLE, g.double_support)
-        if g.shift_time_factor > 0.0:
-            self.phase_duration = self._shift_time(g)
+        self._plan_shift(t, com, comd)
 
     def _plan_command(self) -> np.ndarray:
         """The command the footstep planner uses: the command plus the speed correction."""
@@ -495,14 +513,6 @@ class GaitPlanner:
         if self._moving():
             c[:2] += self.speed_correction.value
         return c
-
-    def _square(self, a: np.ndarray, b: np.ndarray, side_a: int) -> bool:
-        """True when sole a stands about beside sole b (a stance to stop on)."""
-        d = rot2(b[3]).T @ (a[:2] - b[:2])
-        g = self.params.gait
-        lateral = SIDE_SIGN[side_a] * d[1]
-        return bool(abs(d[0]) < 0.06 and g.min_step_width <= lateral <= g.step_width + 0.08
-                    and abs(wrap(a[3] - b[3])) < 0.15)
 
     def _adjust_swing_target(self, t: float, com, comd) -> None:
         """Capture-point (DCM) stepping: choose where and when the swing sole lands so that, at
@@ -584,14 +594,6 @@ class GaitPlanner:
     def _planned_dcm_offset(self) -> np.ndarray:
         """Periodic DCM offset b (xy, W) at the switch onto the planned swing target."""
         g = self.params.gait
-        omega = math.sqrt(self.gravity / g.com_height)
-        T = g.step_period
-        swing_side = 1 - self.stance
-        f1 = self.swing_plan
-        cmd = self._plan_command()
-        f2, f3 = self.footsteps.next_steps(f1, swing_side, self.heading, cmd, 2)
-        L1 = zmp_point(f2, g) - zmp_point(f1, g)
-        L2 = zmp_point(f3, g) - zmp_point(f2, g)
-        e = np.exp(omega * T)
-        return (L1 * e + L2) / (e * e - 1.0)
-
+        return periodic_dcm_offset(self.footsteps, self.swing_plan, 1 - self.stance,
+                                   self.heading, self._plan_command(), g,
+                                   math.sqrt(self.gravity / g.com_height))

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pr2_drake.controllers.planning.com_plan import zmp_point
 from pr2_drake.controllers.planning.footsteps import SIDE_SIGN
 from pr2_drake.controllers.walking_params import GaitParams
 
@@ -126,3 +127,15 @@ def choose_step(t: float, xi: np.ndarray, p_st: np.ndarray, stance: np.ndarray, 
     y = sgn * lat
     target = np.array([sx + cs * x - ss * y, sy + ss * x + cs * y])
     return StepChoice(target, T, cost, np.array([r_x, r_out]))
+
+
+def periodic_dcm_offset(footsteps, f1: np.ndarray, side: int, heading: float,
+                        command: np.ndarray, gait: GaitParams, omega: float) -> np.ndarray:
+    """Periodic DCM offset b (xy, W) [m] at the switch onto footstep ``f1`` (x, y, z, yaw) of
+    sole ``side``: for the next two planned steps L1, L2 (``footsteps.next_steps``) of period
+    T, b = (L1 exp(omega T) + L2) / (exp(2 omega T) - 1)."""
+    f2, f3 = footsteps.next_steps(f1, side, heading, command, 2)
+    L1 = zmp_point(f2, gait) - zmp_point(f1, gait)
+    L2 = zmp_point(f3, gait) - zmp_point(f2, gait)
+    e = np.exp(omega * gait.step_period)
+    return (L1 * e + L2) / (e * e - 1.0)
