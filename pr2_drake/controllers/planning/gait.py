@@ -385,8 +385,7 @@ class GaitPlanner:
         self.phase_duration = duration
 
     def _plan_shift(self, t: float, com, comd) -> None:
-        """Plan the next step from the new stance sole and begin the weight shift onto it
-        (``double_support``, or :func:`shift_duration` with ``shift_time_factor`` > 0)."""
+        """Plan the next step from the new stance sole; begin the shift (:func:`shift_duration`)."""
         g = self.params.gait
         self.swing_plan = self.footsteps.next_steps(self.footholds[self.stance], self.stance,
                                                     self.heading, self._plan_command(), 1)[0]
@@ -400,7 +399,7 @@ class GaitPlanner:
     def _stance_moved(self, t: float, com, comd) -> None:
         """Double support: a new stance sole that slid more than ``stance_slip_replan`` [m] since
         touchdown (off a stone) is taken where it is now and the shift's target planned again
-        (same start and timing); the old target could leave the DCM behind the sole."""
+        (same start), lasting ``double_support`` at least after the slide."""
         now, was = self._sole_pose4(self.stance), self.footholds[self.stance]
         if math.hypot(now[0] - was[0], now[1] - was[1]) > self.params.gait.stance_slip_replan:
             self.footholds[self.stance] = now
@@ -409,7 +408,8 @@ class GaitPlanner:
             t_phase, duration = self.t_phase, self.phase_duration
             self._plan_shift(t, com, comd)
             self.start_dcm = (t0, xi0, self.start_dcm[2])
-            self.t_phase, self.phase_duration = t_phase, duration
+            self.t_phase = t_phase
+            self.phase_duration = max(duration, t - t_phase + self.params.gait.double_support)
 
     def _shift_comdd(self, t: float, com, comd) -> np.ndarray:
         """CoM acceleration (xy) of the weight shift: DCM tracking with a bounded ZMP."""
