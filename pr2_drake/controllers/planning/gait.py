@@ -230,8 +230,6 @@ class GaitPlanner:
             a_xy = np.array([kp * (tx - float(com[0])) - kd * float(comd[0]),
                              kp * (ty - float(com[1])) - kd * float(comd[1])])
         elif self.phase in (Phase.START, Phase.DOUBLE):
-            if self.phase == Phase.DOUBLE and g.stance_slip_replan > 0.0:
-                self._stance_moved(t, com, comd)
             a_xy = self._shift_comdd(t, com, comd)
         elif self.phase == Phase.SINGLE:
             a_xy = self._single_comdd(t, dt, com, comd)
