@@ -10,7 +10,10 @@ Kinematic only: the model's state is set by hand, no simulation.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
+import pytest
 
 from pr2_drake.controllers.model import WholeBodyModel
 from pr2_drake.controllers.planning.gait import GaitPlanner, Phase
@@ -88,3 +91,12 @@ def test_a_small_settling_or_the_rule_off_keeps_the_shift():
         np.testing.assert_array_equal(planner.footholds[stance], landed)
         assert planner.t_phase == t_phase
         np.testing.assert_array_equal(planner.start_dcm[2], target)
+
+
+def test_negative_settings_are_refused():
+    for bad in (dict(stance_slip_replan=-0.01), dict(shift_time_factor=-1.0),
+                dict(shift_time_factor=float("nan"))):
+        params = WalkingParams.load()
+        params = replace(params, gait=replace(params.gait, **bad))
+        with pytest.raises(ValueError, match="stance_slip_replan"):
+            params.check()

@@ -241,6 +241,9 @@ class WalkingParams(Params):
             raise ValueError("gait.recovery_min_step_width must be in (0, min_step_width]")
         if g.min_step_width > g.step_width:
             raise ValueError("gait.min_step_width must not exceed gait.step_width")
+        if not (0.0 <= g.shift_time_factor < math.inf and 0.0 <= g.stance_slip_replan < math.inf):
+            raise ValueError("gait.shift_time_factor and stance_slip_replan must be finite and "
+                             f">= 0 (0: off), got {g.shift_time_factor}, {g.stance_slip_replan}")
         if g.com_bias_axes not in ("x", "y", "xy"):
             raise ValueError(f"gait.com_bias_axes must be 'x', 'y' or 'xy', got "
                              f"{g.com_bias_axes!r}")
