@@ -418,5 +418,14 @@ def main(argv: list[str] | None = None) -> int:
         return 130
 
 
+def console_main() -> int:
+    """The ``pr2-drake`` program: :func:`main` in a process whose allocator is tuned for the
+    physics step (:func:`pr2_drake.malloc_tuning.restart_tuned` starts it once more)."""
+    from pr2_drake.malloc_tuning import restart_tuned
+
+    restart_tuned()
+    return main()
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(console_main())

@@ -12,7 +12,9 @@ in even ones) and each run in a fresh process (:mod:`pr2_drake.bench.speed_worke
 baseline (default :data:`BASELINE_REF`, the code before issue 27) is ``git archive``\\ d from
 this checkout into a temporary folder and run with that folder as working folder and
 ``PYTHONPATH``, with the same interpreter and packages; it needs only a clone with that
-commit in its history.
+commit in its history. Each side's process starts as that tree's ``pr2-drake`` starts: with
+the allocator setting of :mod:`pr2_drake.malloc_tuning` where the tree has that module, without
+it where it does not.
 
 Printed per workload: the real-time factor (simulated time over the wall time of the
 simulation loop; building excluded), median and every run, for this code and the baseline,
@@ -50,6 +52,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from pr2_drake import malloc_tuning
 from pr2_drake.bench import speed_worker
 from pr2_drake.bench.speed_worker import PART_NAMES, PARTS
 
@@ -90,7 +93,9 @@ def run_worker(root: Path, workload: str, seed: int, seconds: float | None,
         args.append("--profile")
     code = ("import runpy, sys; sys.argv = ['speed_worker', *sys.argv[1:]]; "
             f"runpy.run_path({str(Path(speed_worker.__file__))!r}, run_name='__main__')")
-    env = dict(os.environ, PYTHONPATH=str(root))
+    env = dict(malloc_tuning.plain_env(os.environ), PYTHONPATH=str(root))
+    if (root / "pr2_drake" / "malloc_tuning.py").exists():  # started as that tree's CLI starts
+        env = malloc_tuning.tuned_env(env)
     cmd = [sys.executable, "-c", code, *args]
     with tempfile.TemporaryDirectory(prefix="pr2_speed_cg_") as tmp:
         counts = Path(tmp) / "callgrind.out"
