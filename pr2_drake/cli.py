@@ -421,10 +421,16 @@ def main(argv: list[str] | None = None) -> int:
 def console_main() -> int:
     """The ``pr2-drake`` program: :func:`main` in a process whose allocator is tuned for the
     physics step (:func:`pr2_drake.malloc_tuning.restart_tuned` starts it once more)."""
+    import os
+
     from pr2_drake.malloc_tuning import restart_tuned
 
     restart_tuned()
-    return main()
+    try:
+        return main()
+    except BrokenPipeError:  # the reader left early (``pr2-drake tasks | head -1``): no traceback
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nor at the final flush
+        return 141  # 128 + SIGPIPE, as a shell reports a program that a closed pipe stopped
 
 
 if __name__ == "__main__":

@@ -80,3 +80,13 @@ def test_run_task_prints_the_rubric():
     for item in ("onto_step", "over_steps", "touch_button", "touch_button_arm"):
         assert item in out.stdout
     assert "score 0 / 20" in out.stdout
+
+
+def test_a_reader_that_leaves_early_gets_no_traceback():
+    """``pr2-drake tasks | head -1``: the pipe is closed before the program writes."""
+    proc = subprocess.Popen([sys.executable, "-m", "pr2_drake.cli", "tasks"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=60) == 141, err
+    assert "Traceback" not in err and "BrokenPipe" not in err, err
