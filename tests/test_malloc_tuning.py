@@ -1,9 +1,11 @@
 """The allocator setting the ``pr2-drake`` program starts with (pr2_drake/malloc_tuning.py):
 when it applies, the restart, and that episodes under it are the same bit for bit."""
 
+import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -67,23 +69,19 @@ def test_restart_runs_the_command_again_once_with_the_tunable():
     assert lines[:2] == ["start", "None None"]
 
 
-_EPISODE = """
-import hashlib, numpy as np
-from pr2_drake import episode as em
-from pr2_drake.run import run_episode
-from pr2_drake.scenario import Scenario
-orig = em.Episode.report
-def report(self, *a, **k):
-    r = orig(self, *a, **k)
-    x = np.asarray(self.testbed.GetOutputPort("plant_state").Eval(self.tb_context), float)
-    r["sha"] = hashlib.sha256(x.tobytes()).hexdigest()
-    return r
-em.Episode.report = report
-print(run_episode(Scenario(task=4, seed=0, seconds=0.6))["sha"])
-"""
+FINGERPRINT = Path(__file__).resolve().parents[1] / "tools" / "fingerprint.py"
 
 
-def test_an_episode_is_the_same_bit_for_bit_under_the_tunable():
-    plain = _child(_EPISODE)[0]
-    tuned = _child(_EPISODE, GLIBC_TUNABLES=mt.TUNABLES)[0]
+def _state_hash(tmp_path, name, **env):
+    """The plant state's SHA-256 at the end of 0.6 s of task 4 seed 0 (tools/fingerprint.py)."""
+    out = tmp_path / f"{name}.json"
+    _child(f"import runpy, sys; sys.argv = ['fp', '--tasks', '4', '--seconds', '0.6', "
+           f"'--out', {str(out)!r}]; runpy.run_path({str(FINGERPRINT)!r}, run_name='__main__')",
+           **env)
+    return json.loads(out.read_text())[0]["state_sha256"]
+
+
+def test_an_episode_is_the_same_bit_for_bit_under_the_tunable(tmp_path):
+    plain = _state_hash(tmp_path, "plain")
+    tuned = _state_hash(tmp_path, "tuned", GLIBC_TUNABLES=mt.TUNABLES)
     assert len(plain) == 64 and tuned == plain
