@@ -254,6 +254,35 @@ def test_inside_the_sandbox(setup, tmp_path):
 
 
 @pytest.mark.parametrize("setup", SETUPS)
+def test_the_agent_reads_the_project_from_a_private_folder_under_tmp(setup, tmp_path, monkeypatch):
+    """A project (or virtual environment) cloned into a folder others cannot enter, under a
+    folder the sandbox replaces (``mktemp -d`` makes /tmp/tmp.XXXX with mode 700): the agent,
+    another uid, still reaches it read-only through folders made open on the way."""
+    import tempfile
+
+    from pr2_drake.compete import isolation
+
+    private = Path(tempfile.mkdtemp())  # /tmp/tmpXXXX, mode 700
+    assert private.parent == Path(tempfile.gettempdir())
+    package = private / "repo"
+    package.mkdir()
+    (package / "module.py").write_text("ANSWER = 42\n")
+    needed = isolation._needed_paths()
+    monkeypatch.setattr(isolation, "_needed_paths", lambda: [*needed, package])
+    code = f"import sys; sys.path.insert(0, {str(package)!r}); import module; print(module.ANSWER)"
+    root = Path(tempfile.mkdtemp())
+    try:
+        argv = isolation.command(setup, [sys.executable, "-I", "-S", "-c", code],
+                                 plan=isolation.mount_plan(None, (), 1 << 26),
+                                 root=root, uid=isolation.agent_uid(), rlimits={}, cwd="/")
+        r = subprocess.run(argv, capture_output=True, text=True, timeout=60)
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+        shutil.rmtree(private, ignore_errors=True)
+    assert r.returncode == 0 and r.stdout.strip() == "42", r.stderr
+
+
+@pytest.mark.parametrize("setup", SETUPS)
 def test_without_control_groups_the_address_space_and_process_limits_hold(setup, monkeypatch):
     """Where no cgroup is writable (simulated): RLIMIT_AS refuses the shared-memory hog,
     RLIMIT_NPROC (a uid per agent) stops the fork bomb, and the PID namespace takes its

@@ -95,8 +95,10 @@ def mount_plan(submission: Path | None, hide: tuple[Path, ...], tmp_bytes: int) 
             covered.add(closed)  # an empty folder over it, then what is needed bound back
             plan.append(["tmpfs", "", str(closed), 0o755, 0])
         if under_fresh or closed is not None:
-            top = closed if closed is not None else next(
-                Path(f) for f in fresh if _within(path, Path(f)))
+            # Under a fresh folder every folder on the way is made anew and opened, a private
+            # one too (a project cloned into `mktemp -d`); elsewhere those below the tmpfs.
+            top = next(Path(f) for f in fresh if _within(path, Path(f))) if under_fresh \
+                else closed
             for parent in reversed(path.parents):  # folders on the way, open to the agent
                 if top in parent.parents and parent not in made:
                     made.add(parent)
