@@ -56,7 +56,8 @@ class PlantSettings:
     Attributes:
         time_step: physics step [s]; None (the default) = the task's (2 ms unless its YAML
             says otherwise; :data:`pr2_drake.testbed.DEFAULT_TIME_STEP`).
-        contact_approximation: "similar" (the default), "lagged", "sap" or "tamsi".
+        contact_approximation: "similar" (the default), "lagged", "sap" or "tamsi" (Drake's
+            deprecated solver; refused where a scene drives a joint by PD, as task 3's bar).
         contact_model: "point" or "hydroelastic_with_fallback" / "hydroelastic".
     """
 

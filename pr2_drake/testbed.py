@@ -184,6 +184,7 @@ class Testbed(Diagram):
                 self.scene = self.task.build_scene(plant, rng)
         self.randomization = RandomizationBlocks(config.randomize, config.time_step, self.task)
         self.randomization.raise_effort_limits(plant, self.robot)
+        _check_pd_support(plant, config.contact_approximation)
         plant.Finalize()
         self.maps = KuavoMaps.from_plant(plant, self.robot)
         self._set_default_pose(config.start or self.scene.start)
@@ -356,6 +357,20 @@ class Testbed(Diagram):
     # -- conveniences -------------------------------------------------------------------------
     def has_camera(self) -> bool:
         return self.camera.enabled
+
+
+def _check_pd_support(plant: MultibodyPlant, approximation: str) -> None:
+    """Refuse "tamsi" when a joint actuator has PD gains: Drake models those controllers with
+    SAP only, and TAMSI leaves such a joint undriven (task 3's bar would never move)."""
+    if approximation != "tamsi":
+        return
+    driven = [plant.get_joint_actuator(i).name() for i in plant.GetJointActuatorIndices()
+              if plant.get_joint_actuator(i).has_controller()]
+    if driven:
+        raise ValueError(
+            f"contact_approximation 'tamsi' cannot drive the PD-controlled actuators "
+            f"{driven} of this scene (Drake runs PD actuators with SAP only; TAMSI is also "
+            f"deprecated in Drake): use 'similar', 'lagged' or 'sap'")
 
 
 def _resolve_camera(camera: CameraSettings | None, task) -> CameraSettings:

@@ -185,6 +185,17 @@ def test_bad_config_is_rejected():
         build_testbed(TestbedConfig(camera=CameraSettings(enabled=True, quality="ultra")))
 
 
+def test_tamsi_is_refused_where_a_scene_drives_a_joint_by_pd():
+    """Task 3's bar runs on a PD-controlled actuator, which Drake simulates with SAP only:
+    under TAMSI the bar would stand still, so the testbed refuses the pair by name; a scene
+    without such actuators still builds with it."""
+    with pytest.raises(ValueError, match=r"'tamsi' cannot drive .*moving_bar_drive"):
+        build_testbed(TestbedConfig(task=3, contact_approximation="tamsi"))
+    tb = build_testbed(TestbedConfig(contact_approximation="tamsi"))
+    assert not any(tb.plant.get_joint_actuator(i).has_controller()
+                   for i in tb.plant.GetJointActuatorIndices())
+
+
 def test_physics_step_is_the_tasks_unless_the_scenario_sets_one(tmp_path, monkeypatch):
     from pr2_drake.scenario import load_scenario
     from pr2_drake.tasks import get_task
