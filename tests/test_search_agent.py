@@ -175,6 +175,68 @@ def test_nothing_found_moves_on_to_the_next_table():
     assert desk not in m.surfaces or not m.surfaces[desk].contains(TABLES["desk"].center)
 
 
+def _last_look_heading(seq, ctx, sim, t: float):
+    """Let the look at the goal's pose reach its last heading (the body turned to it) by t."""
+    x, y, yaw = seq.memory(ctx).goal
+    m = seq.mutable_memory(ctx)
+    m.look_k = len(seq.p.look_yaws_deg) - 1
+    m.t_still = -1.0
+    seq.GetInputPort("body_state").FixValue(
+        ctx, body_state(x, y, yaw + math.radians(seq.p.look_yaws_deg[-1])))
+    sim.AdvanceTo(t)
+
+
+def test_a_top_the_scan_saw_the_target_on_is_looked_at_from_another_side():
+    # The scan saw the book on the desk, but the look from the desk's open side finds
+    # nothing (another object hides it from there): the robot walks to another side of the
+    # desk and looks again before it gives the desk up.
+    det = StubDetector(None)
+    seq, ctx = sequencer(detector=det)
+    seq.GetInputPort("body_state").FixValue(ctx, body_state(2.0, 1.95, math.pi / 2))
+    m = seq.mutable_memory(ctx)
+    m.hints = [np.array([2.3, 2.7, 0.66])]  # on the desk, seen while scanning
+    sim = searching(seq, ctx, 2.0, 1.95, math.pi / 2)
+    desk = seq.memory(ctx).place
+    assert seq.memory(ctx).surfaces[desk].contains(TABLES["desk"].center)
+    sim.AdvanceTo(0.5)
+    first_goal = seq.memory(ctx).goal.copy()
+    assert seq.memory(ctx).stage == Stage.LOOK
+    _last_look_heading(seq, ctx, sim, 2.0)
+    m = seq.memory(ctx)
+    assert m.stage == Stage.NAVIGATE and m.nav_then == Stage.LOOK and m.place == desk
+    assert m.searched == [] and len(m.look_sides) == 1
+    n1 = m.look_sides[0]
+    assert np.allclose(n1, [0, -1])  # the first look was from the open long side
+    # The new look pose faces the desk from another side, look_distance out from its edge.
+    x, y, yaw = m.goal
+    assert not np.allclose(m.goal, first_goal)
+    n2 = -np.array([math.cos(yaw), math.sin(yaw)])
+    assert abs(float(n2 @ n1)) < 1e-9  # a short side of the desk
+    half = TABLES["desk"].size[0] / 2
+    assert abs(float((np.array([x, y]) - TABLES["desk"].center) @ n2)) == pytest.approx(
+        half + seq.p.look_distance, abs=0.05)
+    # Found nothing from there either (look_sides: 2 in all): the desk is given up.
+    seq.GetInputPort("body_state").FixValue(ctx, body_state(x, y, yaw))
+    sim.AdvanceTo(2.5)
+    assert seq.memory(ctx).stage == Stage.LOOK
+    _last_look_heading(seq, ctx, sim, 4.5)
+    m = seq.memory(ctx)
+    assert m.stage == Stage.NAVIGATE and m.place != desk
+    assert len(m.searched) == 1 and TABLES["desk"].contains(m.searched[0])
+    assert m.look_sides == []
+
+
+def test_a_top_not_hinted_is_looked_at_from_one_side_only():
+    det = StubDetector(None)
+    seq, ctx = sequencer(detector=det)
+    sim = searching(seq, ctx, 2.0, 1.95, math.pi / 2)
+    desk = seq.memory(ctx).place
+    sim.AdvanceTo(0.5)
+    _last_look_heading(seq, ctx, sim, 2.0)
+    m = seq.memory(ctx)
+    assert m.stage == Stage.NAVIGATE and m.place != desk and len(m.searched) == 1
+
+
 def test_unreadable_sentence_ends_with_the_parsers_message():
     seq, ctx = sequencer(instruction=None, error="no object named in 'bring me a banana'")
     sim = Simulator(seq, ctx)

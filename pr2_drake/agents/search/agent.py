@@ -25,7 +25,9 @@ Stages (``stage`` output):
    sentence names; then the nearest), facing it, on the side with the most free floor; no
    top left: walk to a frontier of the map (free floor next to unknown) and SCAN there;
 2. LOOK: stand still, take a frame, run the detector; try the headings ``look_yaws_deg``
-   (the camera is fixed on the base: the body turns); nothing found -> next top;
+   (the camera is fixed on the base: the body turns); nothing found -> next top, except on a
+   top the scan saw the target on: there another object can hide it from one side, so the
+   robot first walks to the top's next side and looks again (``look_sides`` in all);
 3. APPROACH: small steps onto a pick pose ``pick_standoff`` from the table edge, in line with
    the object (the hand's shoulder nearer it), facing the table; an object more than
    ``pick_reach`` from the hand's shoulder there is picked from the side (of the four)

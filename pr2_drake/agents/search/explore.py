@@ -21,7 +21,7 @@ from pydrake.math import RigidTransform
 
 from pr2_drake.agents.search.memory import SearchMemory, Stage
 from pr2_drake.agents.search.navigation import OccupancyGrid
-from pr2_drake.agents.search.tables import Table, surface_order
+from pr2_drake.agents.search.tables import Table, seen_on, surface_order
 from pr2_drake.agents.sequencer import Now
 
 
@@ -112,6 +112,7 @@ class ExploreStages:
         tops = [s for s in m.map.surfaces(self.mp) if not self._excluded(m, s)]
         order = surface_order(tops, m.hints, self.expected_height, p_WB, self.p)
         m.surfaces = {s.name: s for s in order}
+        m.look_sides = []
         for s in order:
             goal = self._look_pose(m, s.name)
             if self._plan(m, p_WB, goal):
@@ -123,6 +124,28 @@ class ExploreStages:
                 self._go(m, Stage.NAVIGATE, t)
                 return
         self._explore(m, p_WB, t)
+
+    def _look_again(self, m: SearchMemory, p_WB, t: float) -> bool:
+        """After a look that found nothing: when the target was seen on this top while
+        scanning (a hint, as :func:`surface_order` counts them), walk to its next side
+        (``look_sides`` in all) and look again: another object can hide it from one side.
+        False when there is none left (or no path to it)."""
+        tab = m.surfaces[m.place]
+        if not any(seen_on(tab, h, self.p.search_margin) for h in m.hints):
+            return False
+        m.look_sides.append(self._look_side(m, tab))
+        while len(m.look_sides) < self.p.look_sides:
+            goal = self._look_pose(m, m.place)
+            if self._plan(m, p_WB, goal):
+                m.look_k = 0
+                m.nav_then = Stage.LOOK
+                m.log.append(f"{t:7.2f} {self.instruction.target} not seen on the top at "
+                             f"{np.round(tab.center, 2).tolist()}, where the scan saw it: "
+                             f"look from another side")
+                self._go(m, Stage.NAVIGATE, t)
+                return True
+            m.look_sides.append(self._look_side(m, tab))
+        return False
 
     def _excluded(self, m: SearchMemory, s: Table) -> bool:
         """The destination, and the tops searched already."""

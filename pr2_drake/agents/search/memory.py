@@ -25,6 +25,7 @@ class SearchAgentParams(Params):
     look_yaws_deg: List[float] = field(default_factory=lambda: [0.0, 30.0, -30.0])
     look_settle: float = 0.6
     look_frames: int = 2
+    look_sides: int = 2
     search_margin: float = 0.25
     pick_standoff: float = 0.12
     pick_reach: float = 0.58
@@ -136,7 +137,8 @@ class SearchMemory(SequencerMemory):
         side: outward normal (x, y) of the table side the robot stands at.
         path: the waypoints being walked (W, m); goal: the pose goal (x, y, yaw).
         look_k, look_tries, t_still: the heading looked along, frames taken there, since
-            when the robot stands still [s] (-1: it does not).
+            when the robot stands still [s] (-1: it does not); look_sides: outward normals
+            (x, y) of the sides of ``place`` looked from already.
         p_WO: the detected target's centre (W, m); others: other objects seen with it.
         pick_goal: the pose to pick from; nav_then: the stage after NAVIGATE.
         hand: the hand that picks (0 left, 1 right); hand_path, hand_t0: its waypoints and
@@ -177,6 +179,7 @@ class SearchMemory(SequencerMemory):
     goal: Optional[np.ndarray] = None
     look_k: int = 0
     look_tries: int = 0
+    look_sides: list = field(default_factory=list)
     t_still: float = -1.0
     p_WO: Optional[np.ndarray] = None
     others: list = field(default_factory=list)

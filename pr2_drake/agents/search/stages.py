@@ -19,11 +19,11 @@ from pr2_drake.agents.search.memory import HANDS, SearchMemory, Stage
 from pr2_drake.agents.search.navigation import NoPathError, follow_velocity, plan_path
 from pr2_drake.agents.search.tables import (
     Table,
-    best_side,
     heading_frame,
     in_heading,
     out_from_under,
     pose_at,
+    sides_by_preference,
 )
 from pr2_drake.agents.sequencer import Now, along_path
 
@@ -117,7 +117,7 @@ class SearchStages:
         if m.look_tries >= p.look_frames:
             m.look_tries = 0
             m.look_k += 1
-            if m.look_k >= len(p.look_yaws_deg):
+            if m.look_k >= len(p.look_yaws_deg) and not self._look_again(m, p_WB, t):
                 self._searched(m)
                 self._next_place(m, p_WB, t)
 
@@ -305,10 +305,19 @@ class SearchStages:
         m.t_stage = t
         m.best_err, m.t_best = math.inf, t  # the progress watch starts again
 
+    def _look_side(self, m: SearchMemory, tab: Table) -> np.ndarray:
+        """Outward normal (x, y) of the side of ``tab`` to look from: the best
+        (:func:`~.tables.sides_by_preference`) not looked from yet (``m.look_sides``)."""
+        sides = sides_by_preference(self._grid(m), tab, self.p.look_distance,
+                                    self.nav.robot_radius)
+        return next((n for n in sides if not any(np.allclose(n, u) for u in m.look_sides)),
+                    sides[0])
+
     def _look_pose(self, m: SearchMemory, name: str) -> np.ndarray:
-        """The pose ``look_distance`` out from top ``name``'s best side, facing it."""
+        """The pose ``look_distance`` out from top ``name``'s look side (:meth:`_look_side`),
+        facing it."""
         tab = m.surfaces[name]
-        n = best_side(self._grid(m), tab, self.p.look_distance, self.nav.robot_radius)
+        n = self._look_side(m, tab)
         half, _, _ = tab.side_frame(n)
         xy = tab.center + n * (half + self.p.look_distance)
         return np.array([xy[0], xy[1], math.atan2(-n[1], -n[0])])
@@ -440,7 +449,7 @@ class SearchStages:
 
     def _start_approach(self, m: SearchMemory, p_WB, t: float) -> None:
         tab = m.surfaces[m.place]
-        look = best_side(self._grid(m), tab, self.p.look_distance, self.nav.robot_radius)
+        look = self._look_side(m, tab)
         # Stand at the side nearest the object (when there is room), else the look side.
         n = self._pick_side(m, tab, float(p_WB[2]))
         m.sides_tried = []
@@ -500,7 +509,7 @@ class SearchStages:
         than ``pick_reach`` from the hand's shoulder there; the base at height ``z_base``),
         the side (of the four) whose edge is nearest the object, where there is floor to
         stand on in front of the object."""
-        look = best_side(self._grid(m), tab, self.p.look_distance, self.nav.robot_radius)
+        look = self._look_side(m, tab)
         d = m.p_WO[:2] - tab.center
 
         def depth(n: np.ndarray) -> float:

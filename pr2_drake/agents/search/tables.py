@@ -62,6 +62,16 @@ def sides_by_preference(grid: OccupancyGrid, table: Table, standoff: float,
     return [n for _, n in sorted(ranked, key=lambda kn: kn[0], reverse=True)]
 
 
+#: [m] a point seen up to this high above a top is on it (the tallest object is shorter).
+ON_TOP_HEIGHT = 0.35
+
+
+def seen_on(top: Table, p_W, margin: float) -> bool:
+    """Whether a point p_W (x, y, z) [m] seen by the camera lies on ``top``: within its
+    outline grown by ``margin`` and above it by less than :data:`ON_TOP_HEIGHT`."""
+    return top.contains(p_W, margin) and 0.0 < p_W[2] - top.height < ON_TOP_HEIGHT
+
+
 def surface_order(tops: list[Table], hints: list, expected_height: Optional[float], p0,
                   params) -> list[Table]:
     """The tops to search, most likely first: those the target was seen on (a hint within
@@ -69,8 +79,7 @@ def surface_order(tops: list[Table], hints: list, expected_height: Optional[floa
     furniture the sentence names (within ``height_tolerance``), then the nearest to p0."""
 
     def key(s: Table):
-        hinted = any(s.contains(h, params.search_margin) and 0.0 < h[2] - s.height < 0.35
-                     for h in hints)
+        hinted = any(seen_on(s, h, params.search_margin) for h in hints)
         fits = expected_height is not None and abs(s.height - expected_height) <= \
             params.height_tolerance
         return (not hinted, not fits, float(np.linalg.norm(s.center - np.asarray(p0)[:2])))
