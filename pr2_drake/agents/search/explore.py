@@ -133,7 +133,9 @@ class ExploreStages:
         tab = m.surfaces[m.place]
         if not any(seen_on(tab, h, self.p.search_margin) for h in m.hints):
             return False
-        m.look_sides.append(self._look_side(m, tab))
+        # The side just looked from: the look pose faces the top (the map grown since may
+        # rank the sides otherwise now).
+        m.look_sides.append(np.array([-math.cos(m.goal[2]), -math.sin(m.goal[2])]))
         while len(m.look_sides) < self.p.look_sides:
             goal = self._look_pose(m, m.place)
             if self._plan(m, p_WB, goal):
