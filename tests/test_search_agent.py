@@ -192,9 +192,7 @@ def test_a_top_the_scan_saw_the_target_on_is_looked_at_from_another_side():
     # desk and looks again before it gives the desk up.
     det = StubDetector(None)
     seq, ctx = sequencer(detector=det)
-    seq.GetInputPort("body_state").FixValue(ctx, body_state(2.0, 1.95, math.pi / 2))
-    m = seq.mutable_memory(ctx)
-    m.hints = [np.array([2.3, 2.7, 0.66])]  # on the desk, seen while scanning
+    seq.mutable_memory(ctx).hints = [np.array([2.3, 2.7, 0.66])]  # on the desk, while scanning
     sim = searching(seq, ctx, 2.0, 1.95, math.pi / 2)
     desk = seq.memory(ctx).place
     assert seq.memory(ctx).surfaces[desk].contains(TABLES["desk"].center)
@@ -224,17 +222,6 @@ def test_a_top_the_scan_saw_the_target_on_is_looked_at_from_another_side():
     assert m.stage == Stage.NAVIGATE and m.place != desk
     assert len(m.searched) == 1 and TABLES["desk"].contains(m.searched[0])
     assert m.look_sides == []
-
-
-def test_a_top_not_hinted_is_looked_at_from_one_side_only():
-    det = StubDetector(None)
-    seq, ctx = sequencer(detector=det)
-    sim = searching(seq, ctx, 2.0, 1.95, math.pi / 2)
-    desk = seq.memory(ctx).place
-    sim.AdvanceTo(0.5)
-    _last_look_heading(seq, ctx, sim, 2.0)
-    m = seq.memory(ctx)
-    assert m.stage == Stage.NAVIGATE and m.place != desk and len(m.searched) == 1
 
 
 def test_unreadable_sentence_ends_with_the_parsers_message():

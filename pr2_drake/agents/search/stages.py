@@ -18,6 +18,7 @@ import numpy as np
 from pr2_drake.agents.search.memory import HANDS, SearchMemory, Stage
 from pr2_drake.agents.search.navigation import NoPathError, follow_velocity, plan_path
 from pr2_drake.agents.search.tables import (
+    ON_TOP_HEIGHT,
     Table,
     heading_frame,
     in_heading,
@@ -106,7 +107,7 @@ class SearchStages:
             return
         tab = m.surfaces[m.place]
         if det is not None and tab.contains(det, p.search_margin) and abs(
-                det[2] - tab.height) < 0.35:
+                det[2] - tab.height) < ON_TOP_HEIGHT:
             m.p_WO = det
             self._refresh_place(m)
             m.log.append(f"{t:7.2f} found {self.instruction.target} at "
