@@ -14,7 +14,11 @@ with the stairs walking overrides (task 5's row: params/controllers/walking_stai
    gait stands (SETTLE);
 3. REACH: the right hand rises in front of the button (``pre_press`` before its face), then
    moves onto it, ``press_depth`` beyond the face (the hand sphere pushes on it);
-4. PRESS: holds the target for ``hold_time`` (longer than the task's press time);
+4. PRESS: holds the target for ``hold_time`` (longer than the task's press time); then, if the
+   hand sphere stopped more than ``press_tolerance`` short of the button's face (out of reach:
+   the body stood too far back), the hand comes down, the standing point moves that much
+   plus ``press_step`` nearer (at most ``press_max_shift`` in all) and APPROACH begins again,
+   ``press_tries`` reaches in all;
 5. DONE: keeps the hand on the button and stands.
 
 Only the public observation (``body_state``, ``joint_state``) and the priors (``button_center``,
@@ -41,6 +45,7 @@ from pr2_drake.agents.sequencer import (
 from pr2_drake.agents.walk_to_goal import yaw_from_quaternion
 from pr2_drake.params import Params
 from pr2_drake.ports import BODY_STATE_SIZE, JOINT_STATE_SIZE, P_WB, QUAT_WB
+from pr2_drake.robot.params import load_robot_params
 
 
 @dataclass
@@ -67,6 +72,10 @@ class StepsButtonParams(Params):
     press_depth: float = 0.02
     reach_time: float = 1.5
     hold_time: float = 1.0
+    press_tolerance: float = 0.01
+    press_step: float = 0.02
+    press_max_shift: float = 0.10
+    press_tries: int = 3
 
 
 
@@ -99,11 +108,14 @@ class Stage(enum.IntEnum):
 @dataclass
 class StepsButtonMemory(SequencerMemory):
     """What the sequencer remembers (besides :class:`SequencerMemory`): the hand's path
-    (waypoints in W [m], from ``path_t0`` [s])."""
+    (waypoints in W [m], from ``path_t0`` [s]), the reaches made so far and how far [m] the
+    standing point has moved towards the button since the first (a press out of reach)."""
 
     stage: int = Stage.WALK
     path: list = field(default_factory=list)
     path_t0: float = 0.0
+    reaches: int = 0
+    stand_shift: float = 0.0
 
 
 class StepsButtonSequencer(TaskSequencer):
@@ -132,6 +144,7 @@ class StepsButtonSequencer(TaskSequencer):
                              f"got {button_center}")
         self.p = params or StepsButtonParams()
         self.model = WholeBodyModel()  # forward kinematics of the observed state (scratch)
+        self.hand_radius = float(load_robot_params().raw["arms"]["hand_sphere"]["radius"])
         self.stand = np.array([self.button[0] - self.p.stand_distance, self.button[1]])
         # x span [m] where the forward command is at most stairs_speed: from stairs_lead
         # before the first riser to the end of the last tread (None: walk_speed throughout)
@@ -141,13 +154,19 @@ class StepsButtonSequencer(TaskSequencer):
         self._js = self.DeclareVectorInputPort("joint_state", JOINT_STATE_SIZE)
         self.declare_sequencer(StepsButtonMemory(), self.p.period, grasp=False)
 
-    def _soles_error(self, context, bs: np.ndarray, cy: float, sy: float) -> tuple[float, float]:
+    def _stand_point(self, m: StepsButtonMemory) -> np.ndarray:
+        """Where the soles' midpoint stands for the reach (xy, W) [m]: ``stand_distance``
+        before the button's face, moved ``stand_shift`` towards it (heading 0: along +x)."""
+        return self.stand + np.array([m.stand_shift, 0.0])
+
+    def _soles_error(self, context, bs: np.ndarray, cy: float, sy: float,
+                     m: StepsButtonMemory) -> tuple[float, float]:
         """Stand point minus the soles' midpoint (xy), in the heading frame [m]."""
         js = self._js.Eval(context)
         self.model.update(*self.model.state_from_ports(js, bs))
         mid = 0.5 * (self.model.sole_pose(0).translation()[:2]
                      + self.model.sole_pose(1).translation()[:2])
-        err = self.stand - mid
+        err = self._stand_point(m) - mid
         return cy * err[0] + sy * err[1], -sy * err[0] + cy * err[1]
 
     @staticmethod
@@ -162,7 +181,7 @@ class StepsButtonSequencer(TaskSequencer):
         p_WB = bs[P_WB]
         yaw = yaw_from_quaternion(bs[QUAT_WB])
         standing = self.walker_standing(context)
-        err = self.stand - p_WB[:2]
+        err = self._stand_point(m) - p_WB[:2]
         cy, sy = math.cos(yaw), math.sin(yaw)
         ex, ey = cy * err[0] + sy * err[1], -sy * err[0] + cy * err[1]  # heading frame
         yaw_rate = min(max(-p.yaw_gain * yaw, -0.3), 0.3)  # hold heading 0 (up the steps)
@@ -176,7 +195,7 @@ class StepsButtonSequencer(TaskSequencer):
             # Between the soles, not the base: the base sways a few cm sideways with every
             # step, more than the tolerance, and its error flipped the small steps back and
             # forth; the soles' midpoint moves only by the steps.
-            ex, ey = self._soles_error(context, bs, cy, sy)
+            ex, ey = self._soles_error(context, bs, cy, sy, m)
             if math.hypot(ex, ey) < p.position_tolerance:
                 m.cmd = np.zeros(3)
                 self._go(m, Stage.SETTLE, t)
@@ -196,13 +215,31 @@ class StepsButtonSequencer(TaskSequencer):
                 press = self.button + np.array([p.press_depth, 0.0, 0.0])
                 m.path = [start, front, press]
                 m.path_t0 = t
+                m.reaches += 1
                 self._go(m, Stage.REACH, t)
         if m.stage == Stage.REACH:
             m.targets[p.hand], k = along_path(m.path, m.path_t0, t, p.reach_time)
             if k >= len(m.path) - 1:
                 self._go(m, Stage.PRESS, t)
         if m.stage == Stage.PRESS and t - m.t_stage >= p.hold_time:
+            self._after_press(context, bs, m, t)
+
+    def _after_press(self, context, bs: np.ndarray, m: StepsButtonMemory, t: float) -> None:
+        """DONE, or, when the hand sphere stopped short of the button's face (see the module
+        docstring, PRESS) and reaches are left, down with the hand and APPROACH a nearer point."""
+        p = self.p
+        js = self._js.Eval(context)
+        self.model.update(*self.model.state_from_ports(js, bs))
+        p_WH = self.model.hand_point(p.hand)[0]
+        short = float(self.button[0] - p_WH[0]) - self.hand_radius  # [m] sphere to face (x)
+        shift = min(m.stand_shift + short + p.press_step, p.press_max_shift)
+        if short <= p.press_tolerance or m.reaches >= p.press_tries or shift <= m.stand_shift:
             self._go(m, Stage.DONE, t)
+            return
+        m.stand_shift = shift
+        m.targets[p.hand] = None
+        m.cmd = np.zeros(3)
+        self._go(m, Stage.APPROACH, t)
 
 
 class StepsButtonAgent(Diagram):
