@@ -17,7 +17,7 @@ from pr2_drake.controllers.walking_params import WalkingParams
 from pr2_drake.controllers.model import WholeBodyModel
 from pr2_drake.controllers.tracking.qp import WholeBodyQp
 from pr2_drake.controllers.whole_body import WholeBodyController, check_hand_targets
-from pr2_drake.ports import N_ARMS
+from pr2_drake.ports import N_ARMS, Q_ARMS
 
 
 def _standing_q(model: WholeBodyModel) -> np.ndarray:
@@ -59,6 +59,84 @@ def test_posture_task_alone_sets_the_joint_accelerations():
     np.testing.assert_allclose(gen[m.maps.v_base], 0.0, atol=1e-6)
     np.testing.assert_allclose(gen[m.v_legs], res.tau, atol=1e-6)
     np.testing.assert_allclose(gen[m.v_arms], res.tau_arms, atol=1e-6)
+
+
+def _posture_problem(kp: float):
+    """Free fall with a posture task of gain ``kp`` [1/s^2] towards a pose 0.05 rad off: the
+    model, its cost and the posture accelerations the task asks for."""
+    m = WholeBodyModel()
+    q = _standing_q(m)
+    rng = np.random.default_rng(1)
+    q_nominal = q[m.maps.q_joints] + rng.uniform(-0.05, 0.05, len(m.maps.q_joints))
+    m.update(q, np.zeros(m.nv))
+    n = len(m.maps.v_joints)
+    task = PostureObjective(m, q_nominal, np.full(n, kp), np.full(n, 4.0), np.ones(n))
+    cost = ObjectiveCost(m.nv)
+    task.add_to(cost, m, WholeBodyPlan())
+    return m, cost, kp * (q_nominal - q[m.maps.q_joints])
+
+
+def _solve_free(m, cost, arm_effort, arm_limits):
+    qp = WholeBodyQp(m.nv, m.maps.v_base, m.v_legs, m.effort[N_ARMS:], 2 * m.n_points,
+                     WalkingParams.load().qp, arm_v=m.v_arms, arm_effort=arm_effort,
+                     arm_limits=arm_limits)
+    res = qp.solve(m.mass_matrix(), m.bias(), np.zeros((6 * m.n_points, m.nv)), cost.H,
+                   cost.g, np.zeros(2 * m.n_points))
+    assert res.ok
+    return res
+
+
+def test_arm_rows_left_out_of_the_qp_change_nothing_until_an_arm_limit_binds():
+    """``arm_limits=False`` (arms="balance"): the arm torque rows leave the QP. Far from the
+    arms' peak torques the solution is the one with the rows; where a limit would bind, the
+    arms follow their posture task anyway and their torques are clamped afterwards."""
+    m, cost, a = _posture_problem(200.0)
+    arm_effort = m.effort[:N_ARMS]
+    with_rows = _solve_free(m, cost, arm_effort, True)
+    without = _solve_free(m, cost, arm_effort, False)
+    np.testing.assert_allclose(without.vdot, with_rows.vdot, atol=1e-9)
+    np.testing.assert_allclose(without.tau_arms, with_rows.tau_arms, atol=1e-6)
+    np.testing.assert_allclose(without.tau, with_rows.tau, atol=1e-6)
+    # Arm peak torques of 0.05 Nm: the rows bound the arm torques (the arms lag their task);
+    # without them the arms track the task and the output torques are clamped.
+    weak = np.full(N_ARMS, 0.05)
+    bound = _solve_free(m, cost, weak, True)
+    free = _solve_free(m, cost, weak, False)
+    gen = m.mass_matrix() @ bound.vdot + m.bias()
+    np.testing.assert_allclose(gen[m.v_arms], bound.tau_arms, atol=1e-6)
+    assert np.all(np.abs(gen[m.v_arms]) <= weak + 1e-6)
+    arms = m.maps.v_joints[:N_ARMS]
+    np.testing.assert_allclose(free.vdot[arms], a[:N_ARMS], atol=1e-3)
+    assert np.abs(bound.vdot[arms] - a[:N_ARMS]).max() > 0.1
+    need = (m.mass_matrix() @ free.vdot + m.bias())[m.v_arms]
+    assert np.any(np.abs(need) > 2 * weak)
+    np.testing.assert_allclose(free.tau_arms, np.clip(need, -weak, weak), atol=1e-9)
+
+
+def test_balance_arms_are_driven_by_the_qp_without_hand_inputs():
+    """arms="balance": the walking QP outputs arm torques (effort mode), with no hand-target
+    or pick-state inputs and no hand-force variables; the robot walks, arms swinging."""
+    sim = WalkingSim(arms="balance")
+    walker = sim.walker
+    assert walker.core.arms_driven and not walker.core.hands
+    assert not walker.HasInputPort("hand_targets") and not walker.HasInputPort("pick_state")
+    assert walker.core.qp.n_hands == 0
+    sim.run(0.5)
+    q0 = sim.testbed.GetOutputPort("joint_state").Eval(
+        sim.testbed.GetMyContextFromRoot(sim.context))[Q_ARMS].copy()
+    sim.set_command(0.3, 0.0, 0.0)
+    p0, *_ = sim.base_pose()
+    moved = 0.0
+    for _ in range(15):
+        assert sim.run(0.2), "the robot fell"
+        q = sim.testbed.GetOutputPort("joint_state").Eval(
+            sim.testbed.GetMyContextFromRoot(sim.context))[Q_ARMS]
+        moved = max(moved, float(np.abs(q - q0).max()))
+    p1, *_ = sim.base_pose()
+    assert p1[0] - p0[0] > 0.3
+    cmd = walker.GetOutputPort("arms_command").Eval(sim.walker_context)
+    assert cmd.mode == "effort" and np.all(np.abs(cmd.values) <= walker.core.arm_effort + 1e-9)
+    assert moved > 0.02  # [rad] the QP moves the arms; a position-mode posture holds them
 
 
 def test_held_hand_force_is_a_bounded_qp_variable():

@@ -12,7 +12,8 @@ Task reference agents (the defaults of ``pr2-drake run --task 1`` and ``--task 4
 - :class:`RockyRoadAgent` (task 1): unknown stones: swing soles aim below the stance sole and
   touch down when their descent is blocked (contact inferred from kinematics), slower walking,
   steering along the line from its start to the goal (pure pursuit: a robot pushed or drifted
-  sideways walks back to the line instead of on towards the goal from where it is)
+  sideways walks back to the line instead of on towards the goal from where it is), its arms
+  swung by the walking QP rather than held (``arms="balance"``)
   (params/controllers/walking_rough.yaml, params/agents/goal_planner_rough.yaml).
 - :class:`SlopeAgent` (task 4): footholds on the incline from the ``slope_angle_deg`` prior and
   the measured pitch of the stance sole, capped at the goal height; soles land pitched like the
@@ -52,22 +53,27 @@ class GoalPlannerParams(Params):
 
 def yaw_from_quaternion(q_wxyz: np.ndarray) -> float:
     """Heading [rad] of a body whose orientation is the unit quaternion (w, x, y, z)."""
-    w, x, y, z = q_wxyz
+    w, x, y, z = q_wxyz.tolist() if isinstance(q_wxyz, np.ndarray) else q_wxyz
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
 def pursuit_point(p_WB: np.ndarray, p_start: np.ndarray, p_goal: np.ndarray,
                   lookahead: float) -> np.ndarray:
     """The point [m] ``lookahead`` along the line from ``p_start`` to ``p_goal`` (xy, W) beyond
-    the base's projection onto it; the goal itself once that passes the goal."""
-    a, b = np.asarray(p_start[:2], float), np.asarray(p_goal[:2], float)
-    u = b - a
-    length = math.hypot(*u)
+    the base's projection onto it; the goal itself once that passes the goal. (Scalar
+    arithmetic: it runs at every control tick.)"""
+    ax, ay = float(p_start[0]), float(p_start[1])
+    bx, by = float(p_goal[0]), float(p_goal[1])
+    ux, uy = bx - ax, by - ay
+    length = math.hypot(ux, uy)
     if length < 1e-9:
-        return b
-    u = u / length
-    s = float(np.dot(np.asarray(p_WB[:2], float) - a, u)) + lookahead
-    return b if s >= length else a + max(s, 0.0) * u
+        return np.array([bx, by])
+    ux, uy = ux / length, uy / length
+    s = (float(p_WB[0]) - ax) * ux + (float(p_WB[1]) - ay) * uy + lookahead
+    if s >= length:
+        return np.array([bx, by])
+    s = max(s, 0.0)
+    return np.array([ax + s * ux, ay + s * uy])
 
 
 def goal_velocity(p_WB: np.ndarray, yaw: float, p_goal: np.ndarray,
@@ -77,15 +83,16 @@ def goal_velocity(p_WB: np.ndarray, yaw: float, p_goal: np.ndarray,
     With ``params.lookahead`` > 0 and a start ``p_start``, the body points at the pursuit point
     on the line from the start to the goal (:func:`pursuit_point`), so that a base that drifted
     off that line walks back to it within about a lookahead; the speed still follows the
-    distance to the goal."""
-    d = np.asarray(p_goal[:2], float) - np.asarray(p_WB[:2], float)
-    dist = float(np.hypot(*d))
+    distance to the goal. (Scalar arithmetic: every agent calls it at the control rate.)"""
+    px, py = float(p_WB[0]), float(p_WB[1])
+    dx, dy = float(p_goal[0]) - px, float(p_goal[1]) - py
+    dist = float(np.hypot(dx, dy))
     if dist < params.stop_radius:
         return np.zeros(3)
-    aim = d
     if params.lookahead > 0.0 and p_start is not None:
-        aim = pursuit_point(p_WB, p_start, p_goal, params.lookahead) - np.asarray(p_WB[:2], float)
-    error = math.atan2(aim[1], aim[0]) - yaw
+        aim = pursuit_point(p_WB, p_start, p_goal, params.lookahead)
+        dx, dy = float(aim[0]) - px, float(aim[1]) - py
+    error = math.atan2(dy, dx) - yaw
     error = math.atan2(math.sin(error), math.cos(error))
     # (min/max: np.clip's values for these nonzero bounds, without its call overhead)
     yaw_rate = min(max(params.yaw_gain * error, -params.max_yaw_rate), params.max_yaw_rate)
@@ -165,6 +172,10 @@ class WalkToGoalAgent(Diagram):
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
+    #: "position": the arms held by :class:`pr2_drake.controllers.posture.ArmPosture`;
+    #: "balance": driven by the walking controller's QP (posture objective only).
+    ARMS = "position"
+
     def __init__(self, priors: dict[str, Any], params: str | None = None,
                  walking_params: str | None = None):
         super().__init__()
@@ -178,8 +189,10 @@ class WalkToGoalAgent(Diagram):
         planner_params = GoalPlannerParams.load(params)
         builder = DiagramBuilder()
         planner = builder.AddNamedSystem("planner", GoalVelocityPlanner(goal, planner_params))
-        walker = builder.AddNamedSystem("walker", self.controller(priors, walking_params))
-        arms = builder.AddNamedSystem("arm_posture", ArmPosture())
+        walker = builder.AddNamedSystem("walker", self.controller(priors, walking_params,
+                                                                  arms=self.ARMS))
+        arms = walker if self.ARMS != "position" else builder.AddNamedSystem("arm_posture",
+                                                                         ArmPosture())
         builder.ExportInput(walker.GetInputPort("joint_state"), "joint_state")
         body = builder.ExportInput(walker.GetInputPort("body_state"), "body_state")
         builder.ConnectInput(body, planner.GetInputPort("body_state"))
@@ -191,17 +204,19 @@ class WalkToGoalAgent(Diagram):
         builder.BuildInto(self)
 
     @classmethod
-    def controller(cls, priors: dict[str, Any], walking_params: str | None = None, **_):
+    def controller(cls, priors: dict[str, Any], walking_params: str | None = None,
+                   arms: str = "position", **_):
         """The walking controller this agent steers (terrain from the priors, gains from
-        ``walking_params``); the command-level learning envs drive the same one
-        (:mod:`pr2_drake.learning.command`). Other parameter files are ignored."""
+        ``walking_params``, ``arms`` as :attr:`ARMS`); the command-level learning envs drive
+        the same one with the arms in position mode (:mod:`pr2_drake.learning.command`).
+        Other parameter files are ignored."""
         from pr2_drake.controllers.walking import WalkingController
         from pr2_drake.controllers.walking_params import WalkingParams
 
         goal = priors.get("goal_center", priors.get("goal"))
         wparams = WalkingParams.load(overrides=[walking_params] if walking_params else [])
         terrain = cls.make_terrain(priors, np.asarray(goal, dtype=float))
-        return WalkingController(wparams, terrain=terrain)
+        return WalkingController(wparams, terrain=terrain, arms=arms)
 
     @classmethod
     def make_terrain(cls, priors: dict[str, Any], goal: np.ndarray):
@@ -229,9 +244,13 @@ class SlopeAgent(WalkToGoalAgent):
 
 class RockyRoadAgent(WalkToGoalAgent):
     """Task 1 reference agent: walks over unknown low stones to ``goal_center``: higher, slower
-    steps, touchdown detected from contact (a blocked swing sole) rather than the plan."""
+    steps, touchdown detected from contact (a blocked swing sole) rather than the plan. The
+    walking QP drives the arms, lightly held to their pose (``arms="balance"``; the weight in
+    params/controllers/walking_rough.yaml), rather than a position-mode posture block."""
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
+
+    ARMS = "balance"
 
     #: [m] swing soles aim this far below the stance sole (stone heights vary by 2 cm).
     LANDING_DROP = 0.025

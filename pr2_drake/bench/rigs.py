@@ -130,7 +130,7 @@ class WalkerRig(Rig):
         builder.Connect(w.GetOutputPort("legs_command"), tb.GetInputPort("legs_command"))
         if self.arms is None:
             builder.Connect(w.GetOutputPort("arms_command"), tb.GetInputPort("arms_command"))
-            if self._pick_state_from_testbed:
+            if self._pick_state_from_testbed and w.HasInputPort("pick_state"):
                 builder.Connect(tb.GetOutputPort("pick_state"), w.GetInputPort("pick_state"))
         else:
             builder.AddSystem(self.arms)
@@ -154,14 +154,15 @@ class WalkingSim(WalkerRig):
 
     With ``arms="effort"`` the walking controller's QP drives the arms (no ArmPosture); then
     :meth:`set_hand_targets` sets its ``hand_targets`` input and its ``pick_state`` input
-    follows the testbed's. ``controller_kwargs`` go to the WalkingController (footsteps,
+    follows the testbed's. With ``arms="balance"`` the QP drives the arms towards their pose
+    only (no hand inputs). ``controller_kwargs`` go to the WalkingController (footsteps,
     terrain). ``add_systems(builder, testbed)`` may add systems before the build.
     """
 
     def __init__(self, params: WalkingParams | None = None, meshcat=None, arms: str = "position",
                  add_systems=None, pick_state_from_testbed: bool = True, **controller_kwargs):
         walker = WalkingController(params, arms=arms, **controller_kwargs)
-        super().__init__(walker, Scenario(seconds=math.inf), meshcat, arms == "effort",
+        super().__init__(walker, Scenario(seconds=math.inf), meshcat, arms != "position",
                          pick_state_from_testbed, add_systems)
         self._force_port = self.plant.get_applied_spatial_force_input_port()
         if arms == "effort":

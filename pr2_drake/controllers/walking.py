@@ -5,7 +5,7 @@ Input ports:
         Unconnected = stand still. NaN/inf or a wrong size raise ValueError naming the port;
         values beyond ``limits`` in params/controllers/walking.yaml are clipped to them.
     ``joint_state`` (54), ``body_state`` (13): the testbed's observations (pr2_drake.ports).
-    With ``arms="effort"`` only:
+    With ``arms="effort"`` only (not ``"balance"``):
     ``hand_targets`` (abstract, a list [left, right]): per hand None or a desired hand-sphere
         centre p_WH (3) [m] in world, optionally followed by an axis of the hand frame to keep
         vertical (6 values; e.g. a held object's "up", so it is carried and set down
@@ -18,12 +18,15 @@ Input ports:
         balance plans for the reaction. Unconnected = nothing held.
 Output ports:
     ``legs_command``: :class:`pr2_drake.ports.JointGroupCommand`, mode "effort" [Nm].
-    ``arms_command`` (``arms="effort"`` only): mode "effort" [Nm], from the same QP.
+    ``arms_command`` (``arms="effort"`` or ``"balance"``): mode "effort" [Nm], from the same QP.
     ``status`` (6): see :data:`pr2_drake.controllers.whole_body.STATUS_FIELDS`
         (qp_ok, consecutive QP failures, QP iterations, gait phase, stance side, falling).
 
 With ``arms="position"`` (default) the arms are held by another block in position mode
 (:class:`pr2_drake.controllers.posture.ArmPosture`) and the QP takes their torques as given.
+With ``arms="balance"`` the QP drives the arms towards their pose (``arms.posture``) and nothing
+else: they swing to help the balance, and the QP keeps position mode's size (no hand-force
+variables).
 
 The control law runs every ``control_period`` seconds (a periodic discrete update) and the torques
 are held in between. The gait and planner memory live in the Python object
@@ -88,7 +91,8 @@ class WalkingController(LeafSystem):
         params: a WalkingParams, a path to a YAML file, or None for params/controllers/walking.yaml.
         footsteps: footstep planner (None: from the velocity command).
         terrain: terrain model of the footholds (None: flat ground).
-        arms: "position" (arms held by another block) or "effort" (the QP drives them).
+        arms: "position" (arms held by another block), "effort" (the QP drives them, with hand
+            targets) or "balance" (the QP drives them, posture only).
     """
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
@@ -103,7 +107,8 @@ class WalkingController(LeafSystem):
         self._js_port = self.DeclareVectorInputPort("joint_state", JOINT_STATE_SIZE)
         self._bs_port = self.DeclareVectorInputPort("body_state", BODY_STATE_SIZE)
         self._arms = self.core.arms_driven
-        if self._arms:
+        self._hands = self.core.hands
+        if self._hands:
             self._hand_port = self.DeclareAbstractInputPort(HAND_TARGETS_PORT,
                                                             AbstractValue.Make([None, None]))
             self._pick_port = self.DeclareAbstractInputPort("pick_state",
@@ -139,10 +144,13 @@ class WalkingController(LeafSystem):
         q, v = self.core.model.state_from_ports(joint_state, self._bs_port.Eval(context))
         t = context.get_time()
         if self._arms:
-            targets = self._hand_port.Eval(context) if self._hand_port.HasValue(context) else None
-            pick = self._pick_port.Eval(context) if self._pick_port.HasValue(context) else None
-            attached = (bool(pick and pick.attached and pick.hand == "left_hand"),
-                        bool(pick and pick.attached and pick.hand == "right_hand"))
+            targets, attached = None, (False, False)
+            if self._hands:
+                hp, pp = self._hand_port, self._pick_port
+                targets = hp.Eval(context) if hp.HasValue(context) else None
+                pick = pp.Eval(context) if pp.HasValue(context) else None
+                attached = (bool(pick and pick.attached and pick.hand == "left_hand"),
+                            bool(pick and pick.attached and pick.hand == "right_hand"))
             # The applied arm efforts (one step old) give the held hand's force estimate.
             applied = joint_state[EFFORT_ARMS] if t > 0.0 else None
             tau = self.core.update(t, q, v, cmd, applied, targets, attached)

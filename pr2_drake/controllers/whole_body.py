@@ -16,9 +16,12 @@ One control tick (:meth:`WholeBodyController.update`):
    the leg torques and, when it drives the arms (``arms="effort"``), the arm torques.
 
 Arms: ``arms="position"`` (default; the arms are held by another block, e.g.
-:class:`pr2_drake.controllers.posture.ArmPosture`, and the QP takes their torques as given)
-or ``arms="effort"`` (the QP drives the arms: posture and hand objectives, torque limits, and hand
-contact forces as variables while a hand is attached).
+:class:`pr2_drake.controllers.posture.ArmPosture`, and the QP takes their torques as given),
+``arms="effort"`` (the QP drives the arms: posture and hand objectives, torque limits, and hand
+contact forces as variables while a hand is attached) or ``arms="balance"`` (the QP drives the
+arms with the posture objective only: no hand targets, no hand-force variables, and the arm
+torques, far from their peaks, are clamped after the QP rather than bounded in it; for agents
+that walk and never reach).
 
 Robot facts (mass, gravity, peak torques, joint ranges) come from the model's plant.
 """
@@ -55,7 +58,7 @@ from pr2_drake.robot.params import ARM_JOINTS, LEG_JOINTS
 
 COMMAND_PORT = "velocity_command"
 HAND_TARGETS_PORT = "hand_targets"
-ARM_MODES = ("position", "effort")
+ARM_MODES = ("position", "effort", "balance")
 
 # Layout of the status vector (also the status output port).
 STATUS_FIELDS = ("qp_ok", "qp_failures", "qp_iterations", "phase", "stance_side", "falling")
@@ -145,7 +148,7 @@ class WholeBodyController:
         params: walking parameters (None: params/controllers/walking.yaml).
         footsteps: footstep planner (None: from the velocity command).
         terrain: terrain model of the footholds (None: flat).
-        arms: "position" or "effort" (see the module docstring).
+        arms: "position", "effort" or "balance" (see the module docstring).
     """
 
     def __init__(self, params: WalkingParams | None = None,
@@ -156,7 +159,8 @@ class WholeBodyController:
         self.params = params or WalkingParams.load()
         p = self.params
         self.model = m = WholeBodyModel()
-        self.arms_driven = arms == "effort"
+        self.arms_driven = arms != "position"  # the QP outputs arm torques
+        self.hands = arms == "effort"  # ... and tracks hand targets and held objects' forces
         self.planner = GaitPlanner(p, m, footsteps, terrain)
         self.com_filter = ComStateFilter(p.com_filter)
         # Objectives, in the order their rows are summed.
@@ -172,7 +176,7 @@ class WholeBodyController:
             np.r_[np.full(n_arms, arm_gains.kp), np.full(n_legs, p.posture_legs.kp)],
             np.r_[np.full(n_arms, arm_gains.kd), np.full(n_legs, p.posture_legs.kd)],
             np.r_[np.full(n_arms, arm_gains.weight), np.full(n_legs, p.posture_legs.weight)])
-        if self.arms_driven:
+        if self.hands:
             self.objectives += [HandPositionObjective(0, p.arms.hand), HandPositionObjective(1, p.arms.hand),
                            HandUprightObjective(0, p.arms.hand_upright,
                                            p.arms.hand_upright_max_error),
@@ -199,7 +203,8 @@ class WholeBodyController:
                               arm_v=m.v_arms, n_kin=2 * self.contacts.n_kin_foot,
                               box_v=self.box_v,
                               arm_effort=self.arm_effort if self.arms_driven else None,
-                              n_hands=2 if self.arms_driven else 0)
+                              n_hands=2 if self.hands else 0,
+                              arm_limits=arms != "balance")
         self.q_arms_hold = m.q_nominal[m.maps.q_joints[:N_ARMS]]
         self.hand_force = HandForceEstimator(m)
         self._fz_max = np.zeros(2 * m.n_points)
@@ -300,14 +305,14 @@ class WholeBodyController:
         com, comd, J_com, jdv_com = m.com()
         com, comd = self.com_filter.update(t, com, comd)
         lean = None
-        if self.arms_driven:
+        if self.hands:
             attached = (bool(attached[0]), bool(attached[1]))
             applied = self.tau_arms if tau_arms is None else tau_arms
             f_hands = self.hand_force.update(t, applied, attached)
             if attached[0] or attached[1]:
                 lean = self._lean(f_hands)
         plan = self.planner.update(t, cmd, com, comd, lean)
-        if self.arms_driven:
+        if self.hands:
             for side in (0, 1):
                 h = plan.hands[side]
                 tgt = targets[side]
@@ -367,7 +372,7 @@ class WholeBodyController:
         fz_max[:n], fz_max[n:] = c0.fz_max, c1.fz_max
         fz_min[:n], fz_min[n:] = c0.fz_min, c1.fz_min
         hand_args = {}
-        if self.arms_driven:
+        if self.hands:
             fmax = p.qp.hand_force_max
             for side in (0, 1):
                 r = slice(3 * side, 3 * side + 3)

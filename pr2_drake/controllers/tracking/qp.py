@@ -1,13 +1,17 @@
 """Whole-body QP: task-space inverse dynamics with contact forces, solved by OSQP.
 
 Decision variables x = [vdot (nv), f (3 per contact point, in W, scaled by 1/force_scale)].
+The dynamics rows come first: base, legs, arms; or, without ``arm_limits``, arms, base, legs
+(the arm rows are then a prefix of A that DAQP is not given).
 Constraints (rows of one preallocated sparse matrix, coefficients updated every tick):
 
 - floating-base rows of M vdot + h = J_c^T f (the base is not actuated);
 - leg torques tau = M_l vdot + h_l - J_{c,l}^T f within +- the peak torque;
 - arm rows: either the arms are position-controlled elsewhere, so their torques are known (the
   spring-damper of the posture command) and enter as equalities, or (``arm_effort`` given) the
-  QP drives them too and their torques are bounded by their peak torques like the legs';
+  QP drives them too and their torques are bounded by their peak torques like the legs'
+  (``arm_limits``; without it the arm rows leave the DAQP problem: the arm torques are whatever
+  the solution needs, clamped afterwards);
 - hand contact forces (``n_hands`` > 0): 3 more variables per hand (W, scaled like the foot
   forces) that enter the dynamics through the hand point's Jacobian, each within box bounds
   (zero while the hand holds nothing), with a regularisation towards a prior force;
@@ -86,12 +90,16 @@ class WholeBodyQp:
         arm_effort: peak torque per arm joint [Nm]: the QP drives the arms (else their torques
             are given to :meth:`solve`).
         n_hands: hand contact points whose forces are variables (0: none).
+        arm_limits: with ``arm_effort``: the arm torque limits are rows of the QP. False: DAQP
+            solves without the arm rows (arms that never reach their peak torques, e.g. held
+            to a pose only: a smaller problem), and the arm torques are clamped afterwards.
     """
 
     def __init__(self, nv: int, base_v: np.ndarray, leg_v: np.ndarray, effort: np.ndarray,
                  n_points: int, params: QpParams, arm_v: np.ndarray | None = None,
                  n_kin: int = 0, box_v: np.ndarray | None = None,
-                 arm_effort: np.ndarray | None = None, n_hands: int = 0):
+                 arm_effort: np.ndarray | None = None, n_hands: int = 0,
+                 arm_limits: bool = True):
         self.p = params
         self.nv = nv
         self.nf_feet = 3 * n_points
@@ -167,8 +175,16 @@ class WholeBodyQp:
             raise ValueError(f"qp.solver must be 'daqp' or 'osqp', got {solver!r}")
         self.use_daqp = solver == "daqp" and daqp is not None
         # Per-tick index helpers (contiguous row blocks as slices).
-        self._dyn_v = np.concatenate([self.base_v, self.leg_v, self.arm_v]).astype(int)
-        self._nl = len(self.base_v) + len(self.leg_v)
+        na, nb = len(self.arm_v), len(self.base_v)
+        # The first row DAQP sees: the arm rows are a prefix it skips without arm_limits.
+        self._row0 = na if (self.arm_effort is not None and not arm_limits) else 0
+        if self._row0:
+            order, self._arm_rows = [self.arm_v, self.base_v, self.leg_v], slice(0, na)
+            self._leg_rows = slice(na + nb, n_dyn)
+        else:
+            order, self._arm_rows = [self.base_v, self.leg_v, self.arm_v], slice(n_dyn - na, n_dyn)
+            self._leg_rows = slice(nb, n_dyn - na)
+        self._dyn_v = np.concatenate(order).astype(int)
         self._fz_rows = n_dyn + 5 * np.arange(n_points) + 4
         self._kin_slice = slice(n_dyn + 5 * n_points, n_dyn + 5 * n_points + n_kin)
         self._box_slice = slice(self.m - nh - len(self.box_v), self.m - nh)
@@ -186,12 +202,12 @@ class WholeBodyQp:
         self._u = np.empty(self.m)
         self._dyn_lo = np.zeros(self.n_dyn)
         self._dyn_hi = np.zeros(self.n_dyn)
-        nb, nl = len(self.base_v), self._nl
-        self._dyn_lo[nb:nl] = -self.effort
-        self._dyn_hi[nb:nl] = self.effort
+        legs, arms = self._leg_rows, self._arm_rows
+        self._dyn_lo[legs] = -self.effort
+        self._dyn_hi[legs] = self.effort
         if self.arm_effort is not None:
-            self._dyn_lo[nl:] = -self.arm_effort
-            self._dyn_hi[nl:] = self.arm_effort
+            self._dyn_lo[arms] = -self.arm_effort
+            self._dyn_hi[arms] = self.arm_effort
         self._sense_of = np.array([0, _DAQP_EQUALITY], dtype=np.intc)
         self._contact_cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
 
@@ -287,7 +303,7 @@ class WholeBodyQp:
         A = self.A
         # Forces of points not in contact leave the dynamics rows (their columns are zeroed,
         # the sparsity pattern stays), so solver tolerance cannot create phantom support.
-        # Dynamics rows [base; legs; arms] of [M, -Jc^T] in one gather each; -(x s) = x (-s).
+        # Dynamics rows (see __init__) of [M, -Jc^T] in one gather each; -(x s) = x (-s).
         dyn = self._dyn_v
         A[:nd, :nv] = M[dyn]
         np.multiply(Jc.T[dyn], columns[1], out=A[:nd, nv:nv + self.nf_feet])
@@ -306,13 +322,12 @@ class WholeBodyQp:
             prior = np.zeros(3 * self.n_hands) if hand_prior is None else hand_prior
             self.q[hc] = -(self.p.hand_force_reg / s) * prior
         # Bounds -h + offsets: (-h) - e = (-h) + (-e), and -h + 0 = -h.
-        nl = self._nl
         hd = h[dyn]
         lo, hi = self._dyn_lo, self._dyn_hi
-        if self.arm_effort is None and nd > nl:
+        if self.arm_effort is None and len(self.arm_v):
             arms = 0.0 if tau_arms is None else tau_arms
-            lo[nl:] = arms
-            hi[nl:] = arms
+            lo[self._arm_rows] = arms
+            hi[self._arm_rows] = arms
         neg = -hd
         np.add(neg, lo, out=l[:nd])
         np.add(neg, hi, out=u[:nd])
@@ -349,10 +364,14 @@ class WholeBodyQp:
 
     def _solve_daqp(self, l, u, hd, in_contact) -> QpResult | None:
         """DAQP's solution, or None when it has none."""
+        r0 = self._row0
+        if r0:  # without the arm rows (contiguous views)
+            l, u = l[r0:], u[r0:]
         sense = self._sense_of.take((l == u).view(np.uint8))
         # (DAQP copies its inputs: the constant parts of P and A stay intact.) Typically
         # 2-10 active-set iterations; the cap bounds a pathological tick.
-        x, _, exitflag, info = daqp.solve(self.P, self.q, self.A, u, l, sense, iter_limit=1000)
+        x, _, exitflag, info = daqp.solve(self.P, self.q, self.A[r0:], u, l, sense,
+                                          iter_limit=1000)
         if exitflag in _DAQP_OK and math.isfinite(x.sum()):
             return self._result(x, hd, in_contact, "daqp", int(info["iterations"]))
         return None
@@ -392,13 +411,14 @@ class WholeBodyQp:
         leg rows of A (= [M_l, -J_{c,l}^T], with the columns of points not in contact zero);
         the arm torques likewise when the QP drives the arms."""
         nv = self.nv
-        nb, nl = len(self.base_v), self._nl
-        tau = np.dot(self.A[nb:nl], x) + hd[nb:nl]
+        legs = self._leg_rows
+        tau = np.dot(self.A[legs], x) + hd[legs]
         np.minimum(tau, self.effort, out=tau)
         np.maximum(tau, -self.effort, out=tau)
         tau_arms = None
         if self.arm_effort is not None:
-            tau_arms = np.dot(self.A[nl:self.n_dyn], x) + hd[nl:]
+            arms = self._arm_rows
+            tau_arms = np.dot(self.A[arms], x) + hd[arms]
             np.minimum(tau_arms, self.arm_effort, out=tau_arms)
             np.maximum(tau_arms, -self.arm_effort, out=tau_arms)
             self.last_tau_arms = tau_arms
