@@ -25,8 +25,8 @@ Output ports:
 With ``arms="position"`` (default) the arms are held by another block in position mode
 (:class:`pr2_drake.controllers.posture.ArmPosture`) and the QP takes their torques as given.
 With ``arms="balance"`` the QP drives the arms towards their pose (``arms.posture``) and nothing
-else: they swing to help the balance, and the QP keeps position mode's size (no hand-force
-variables).
+else: they swing with the balance; no hand-force variables, and the arm torque rows are left
+out of DAQP's problem (the torques are clamped after it).
 
 The control law runs every ``control_period`` seconds (a periodic discrete update) and the torques
 are held in between. The gait and planner memory live in the Python object
