@@ -67,7 +67,7 @@ def _add_episode_args(p: argparse.ArgumentParser) -> None:
                                    "(default: the task's built-in agent)")
     p.add_argument("--seconds", type=float, help="simulated seconds (default: the task's limit)")
     p.add_argument("--time-step", type=float,
-                   help="physics step [s] (default: the task's, 0.002)")
+                   help="physics step [s] (default: the task's: 0.004, task 6 0.002)")
     p.add_argument("--camera", help="head camera: on, off or WIDTHxHEIGHT (default: the task's)")
     p.add_argument("--camera-fps", type=float, help="camera frames per simulated second")
     p.add_argument("--render-quality", choices=("low", "medium", "high"))

@@ -13,7 +13,7 @@ Example (see ``scenarios/valve_seed7.yaml``)::
     agent: my_pkg.solver:Solver    # or path/to/solver.py:Solver; omit for the built-in agent
     agent_params: {params: params/agents/goal_planner.yaml}
     seconds: 30            # stop earlier than the task's limit
-    plant: {time_step: 0.002, contact_approximation: similar}
+    plant: {time_step: 0.004, contact_approximation: similar}
     sleep: {enabled: true, rest_time: 0.5}   # resting free objects sleep (task 6)
     scene: {variation: false}   # true: the scene itself drawn from the seed (tasks 1, 2, 4-6)
     randomize: {enabled: false}   # domain randomisation from the seed (pr2_drake.randomize)
@@ -54,7 +54,7 @@ class PlantSettings:
     """The physics engine (Drake's discrete MultibodyPlant, SAP).
 
     Attributes:
-        time_step: physics step [s]; None (the default) = the task's (2 ms unless its YAML
+        time_step: physics step [s]; None (the default) = the task's (4 ms unless its YAML
             says otherwise; :data:`pr2_drake.testbed.DEFAULT_TIME_STEP`).
         contact_approximation: "similar" (the default), "lagged", "sap" or "tamsi" (Drake's
             deprecated solver; refused where a scene drives a joint by PD, as task 3's bar).

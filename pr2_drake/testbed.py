@@ -45,8 +45,9 @@ from pr2_drake.scene import Scene, StartPose, build_flat_scene
 CONTACT_APPROXIMATIONS = ("lagged", "sap", "similar", "tamsi")
 CONTACT_MODELS = ("point", "hydroelastic_with_fallback", "hydroelastic")
 #: [s] physics step of a task whose YAML gives none, and of flat ground (README, "The testbed
-#: diagram": 2 ms, chosen on the fidelity table of docs/benchmarks.md).
-DEFAULT_TIME_STEP = 0.002
+#: diagram": 4 ms, the whole-body controllers' period, chosen on the fidelity table and the
+#: randomised seeds of docs/benchmarks.md, issue 27; task 6's YAML keeps 2 ms).
+DEFAULT_TIME_STEP = 0.004
 #: SAP's contact approximation (Drake's ``discrete_contact_approximation``): "similar" keeps
 #: every task's outcomes at 2 ms; "lagged", cheaper at 1 ms, lost a jump landing at 2 ms.
 DEFAULT_CONTACT_APPROXIMATION = "similar"
@@ -60,7 +61,7 @@ class TestbedConfig:
         task: task id (1..6) or name; None for flat ground with no referee.
         seed: episode seed; every random choice (start pose, object placement) flows from it.
         time_step: physics step [s] of the discrete plant; None = the task's (its YAML's
-            ``time_step``), else :data:`DEFAULT_TIME_STEP` (2 ms). Resolved on
+            ``time_step``), else :data:`DEFAULT_TIME_STEP` (4 ms). Resolved on
             construction, so it is a number from then on.
         contact_approximation: SAP variant of MultibodyPlant (default
             :data:`DEFAULT_CONTACT_APPROXIMATION`).

@@ -146,8 +146,13 @@ def test_the_observation_carries_the_original_keys():
     np.testing.assert_array_equal(obs["agent"]["start_orient"], obs["start_orient"])
     k, d = obs["agent"]["stiffness"], obs["agent"]["dampings"]
     tb = env.testbed.config
-    np.testing.assert_array_equal(k, [tb.arm_gains[0]] * 8 + [tb.leg_gains[0]] * 10)
-    np.testing.assert_array_equal(d, [tb.arm_gains[1]] * 8 + [tb.leg_gains[1]] * 10)
+    # The default gains, each capped at what is stable at the physics step.
+    limits = env.testbed.stable_gain_limits()
+    k_max, d_max = (np.concatenate([limits["arms"][i], limits["legs"][i]]) for i in (0, 1))
+    np.testing.assert_array_equal(k, np.minimum([tb.arm_gains[0]] * 8 + [tb.leg_gains[0]] * 10,
+                                                k_max))
+    np.testing.assert_array_equal(d, np.minimum([tb.arm_gains[1]] * 8 + [tb.leg_gains[1]] * 10,
+                                                d_max))
     np.testing.assert_array_equal(obs["obstacle"]["position"], obs["bar_position"])
     np.testing.assert_allclose(obs["obstacle"]["orientation"], [1, 0, 0, 0])  # along x
     q = obs["agent"]["joint_state"]["legs_positions"]
@@ -156,7 +161,7 @@ def test_the_observation_carries_the_original_keys():
                                        "stiffness": [50.0] * 10, "dampings": []}})
     assert obs["current_sim_step"] == 3
     np.testing.assert_array_equal(obs["agent"]["stiffness"][8:], [50.0] * 10)  # in effect
-    np.testing.assert_array_equal(obs["agent"]["dampings"][8:], [tb.leg_gains[1]] * 10)
+    np.testing.assert_array_equal(obs["agent"]["dampings"][8:], d[8:])  # the default's
 
 
 def test_task6_goal_is_the_instruction_sentence():

@@ -6,11 +6,12 @@ import pytest
 from pr2_drake.agents.standing import StandingAgent
 from pr2_drake.env import Env, EpisodeOver
 from pr2_drake.observation import parse_action
+from pr2_drake.testbed import DEFAULT_TIME_STEP
 
 
 @pytest.fixture(scope="module")
 def env():
-    return Env(seed=0, control_dt=0.002, time_limit=1.0)
+    return Env(seed=0, control_dt=DEFAULT_TIME_STEP, time_limit=1.0)
 
 
 def test_observation_has_the_original_keys(env):
@@ -38,7 +39,7 @@ def test_standing_agent_stands_and_episode_ends_at_time_limit(env):
     while not done:
         done, success, obs = env.step(agent.next_action(obs))
         steps += 1
-    assert steps == 500  # 1 s at 2 ms per step
+    assert steps == round(1.0 / DEFAULT_TIME_STEP)  # 1 s, one physics step each
     assert env.status.termination == "timeout" and not success
     assert abs(obs["agent"]["body_state"]["world_pos"][2] - z0) < 0.01
     with pytest.raises(EpisodeOver):

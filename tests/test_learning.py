@@ -1,6 +1,7 @@
 """The learning suite: ids, spaces, rewards, resets, vector envs (pr2_drake.learning)."""
 
 import subprocess
+from dataclasses import replace
 import sys
 
 import numpy as np
@@ -180,3 +181,19 @@ def test_joint_level_zero_action_holds_the_standing_pose():
     for _ in range(100):
         obs, _, terminated, truncated, info = env.step(np.zeros(21, np.float32))
     assert truncated and not terminated and info["termination"] == "timeout"
+
+
+def test_a_step_must_be_a_whole_number_of_physics_steps():
+    """The joint level's 100 Hz runs on a 2 ms plant (10 ms is not a whole number of the tasks'
+    4 ms steps); a control_dt that is not a whole number of steps is refused by name."""
+    from pr2_drake.learning.envs import CommandEnv, JointEnv
+    from pr2_drake.scenario import Scenario, ScenarioError
+
+    env = JointEnv(1)
+    assert env.episode.testbed.config.time_step == 0.002
+    env.close()
+    with pytest.raises(ScenarioError, match=r"control_dt \(0\.01 s\) must be a whole number of "
+                                            r"physics steps \(0\.004 s\)"):
+        CommandEnv(1, control_dt=0.01)
+    with pytest.raises(ScenarioError, match="whole number of physics steps"):
+        JointEnv(1, scenario=Scenario(plant=replace(Scenario().plant, time_step=0.004)))

@@ -21,7 +21,7 @@ from pr2_drake.ports import (
 )
 from pr2_drake.robot.params import load_robot_params
 from pr2_drake.scenario import Scenario
-from pr2_drake.testbed import TestbedConfig, build_testbed
+from pr2_drake.testbed import DEFAULT_TIME_STEP, TestbedConfig, build_testbed
 
 
 def _simulator(config=None):
@@ -84,7 +84,7 @@ def test_effort_is_clamped_to_peak_torque_and_reported():
     simulator, testbed, ctx = _simulator()
     tau = np.full(10, 1000.0)
     testbed.GetInputPort("legs_command").FixValue(ctx, JointGroupCommand.effort(tau))
-    simulator.AdvanceTo(0.002)
+    simulator.AdvanceTo(DEFAULT_TIME_STEP)
     applied = testbed.GetOutputPort("joint_state").Eval(ctx)[EFFORT_LEGS]
     np.testing.assert_allclose(applied, load_robot_params().effort_limits("legs"))
 
@@ -101,7 +101,7 @@ def test_effort_limits_are_a_context_parameter_of_both_paths():
     testbed.GetInputPort("legs_command").FixValue(ctx, JointGroupCommand.effort(np.full(10, 1e3)))
     source = adapter.GetOutputPort("actuation_source")
     assert source.Eval(a_ctx) == EFFORT_SOURCE  # efforts only: no Python at the physics step
-    simulator.AdvanceTo(0.002)
+    simulator.AdvanceTo(DEFAULT_TIME_STEP)
     applied = testbed.GetOutputPort("joint_state").Eval(ctx)[EFFORT_LEGS]
     np.testing.assert_allclose(applied, 0.5 * peak[8:])
     # A position command far from the state saturates at the same halved limits.
@@ -207,8 +207,8 @@ def test_physics_step_is_the_tasks_unless_the_scenario_sets_one(tmp_path, monkey
     ).time_step == 0.001
     monkeypatch.undo()
 
-    assert TestbedConfig().time_step == 0.002  # flat ground: DEFAULT_TIME_STEP
-    assert TestbedConfig(task=1).time_step == 0.002
+    assert TestbedConfig().time_step == DEFAULT_TIME_STEP == 0.004  # flat ground
+    assert TestbedConfig(task=1).time_step == 0.004
     assert TestbedConfig(task="object_search").time_step == 0.002  # tasks/6_*.yaml
     assert load_scenario(None, ["task=6"]).testbed_config().time_step == 0.002
     assert load_scenario(None, ["task=1", "plant.time_step=0.001"]).testbed_config(

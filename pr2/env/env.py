@@ -1,8 +1,8 @@
 """The original platform's ``Env(task_num, seed)`` on a pr2-drake environment.
 
 ``reset()`` and ``step(action)`` return ``(done, success, obs)`` as the original's did; a step
-is one physics step of 1 ms (the original's, in every task; pr2-drake's task 6 would otherwise
-step 2 ms), and ``step({})`` is a valid first call. The observation and action dictionaries
+is one physics step of 1 ms (the original's, in every task; pr2-drake's tasks would otherwise
+step 2 or 4 ms), and ``step({})`` is a valid first call. The observation and action dictionaries
 are :mod:`pr2_drake.observation`'s. Differences: an invalid action ends the episode
 ``invalid_action`` (the message on stderr) instead of raising inside the simulator; a step
 after the end returns the final ``(True, success, obs)`` again.

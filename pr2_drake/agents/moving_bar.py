@@ -49,7 +49,7 @@ class MovingBarParams(Params):
     sole_half_width: float = 0.01
     hip_half_width: float = 0.11
     min_bar_speed: float = 0.5
-    period: float = 0.01
+    period: float = 0.02
 
 
 

@@ -38,7 +38,7 @@ class StandingParams(Params):
     """Gains [Nm/rad, Nm s/rad] per joint in the original order, and the update period [s]."""
 
     FILE: ClassVar[str] = "params/controllers/standing.yaml"
-    period: float = 0.002
+    period: float = 0.004
     leg_kp: list[float] = field(default_factory=lambda: [400.0] * N_LEGS)
     leg_kd: list[float] = field(default_factory=lambda: [8.0] * N_LEGS)
     arm_kp: list[float] = field(default_factory=lambda: [60.0] * N_ARMS)

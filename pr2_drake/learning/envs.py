@@ -59,6 +59,8 @@ class _LearningEnv(gym.Env):
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
     DEFAULT_DT = 0.01
+    #: [s] the physics step when ``scenario`` gives none; None = the task's
+    TIME_STEP: float | None = None
 
     def __init__(self, task: int | str = 1, *, control_dt: float | None = None,
                  reward: str = "dense", camera: bool = False, camera_scale: float = 0.25,
@@ -75,6 +77,8 @@ class _LearningEnv(gym.Env):
             changes["seconds"] = float(seconds)
         if randomize:
             changes["randomize"] = replace(base.randomize, enabled=True)
+        if base.plant.time_step is None and self.TIME_STEP is not None:
+            changes["plant"] = replace(base.plant, time_step=self.TIME_STEP)
         if camera:
             from pr2_drake.run import task_camera
 
@@ -84,6 +88,10 @@ class _LearningEnv(gym.Env):
         self._scenario.validate()
         if self._scenario.task is None:
             raise ScenarioError("the learning envs need a task")
+        step = self._scenario.testbed_config().time_step
+        if abs(self.control_dt / step - round(self.control_dt / step)) > 1e-6:
+            raise ScenarioError(f"control_dt ({self.control_dt:g} s) must be a whole number of "
+                                f"physics steps ({step:g} s)")
         self.render_mode = render_mode
         self._camera_scale = float(camera_scale)
         self._camera = bool(camera)
@@ -270,7 +278,9 @@ class CommandEnv(_LearningEnv):
 
 class JointEnv(_LearningEnv):
     """The joint level: the original platform's action as a Box, held for ``control_dt``
-    (default 0.01 s, 100 Hz).
+    (default 0.01 s, 100 Hz), on a 2 ms physics step unless ``scenario`` sets one (10 ms is a
+    whole number of 2 ms steps, not of the tasks' 4 ms, and the position mode's stable gains
+    are 4x stiffer at 2 ms).
 
     The action, each entry in [-1, 1]: the legs' 10 values, then (``gains``) their 10
     stiffnesses and 10 dampings, then the arms' 8 values (and gains), then pick_left,
@@ -281,6 +291,8 @@ class JointEnv(_LearningEnv):
     (:meth:`pr2_drake.testbed.Testbed.stable_gain_limits`); without ``gains`` the testbed's
     default gains apply.
     """
+
+    TIME_STEP = 0.002
 
     def __init__(self, task: int | str = 1, *, legs_mode: str = "position",
                  arms_mode: str = "position", gains: bool = False, **kwargs):

@@ -38,7 +38,7 @@ def add_controller_server_parser(sub) -> None:
                                                    "(default 0.18)")
     p.add_argument("--request-period", type=positive_float,
                    help="simulated seconds per request without a 'time' field (default: "
-                        "one physics step, 0.002, or --task's)")
+                        "one physics step, 0.004, or --task's)")
     p.add_argument("--max-clients", type=positive_int, help="connections served at once; one more gets "
                                                    "an error reply (default 16)")
     p.add_argument("--idle-timeout", type=positive_float, help="close a connection silent this many "

@@ -8,7 +8,7 @@ built-in whole-body controller (:class:`pr2_drake.controllers.jumping.JumpContro
 
 Time: a request's ``time`` field, when present, is the simulation time; otherwise the n-th
 valid request (from 0) of the session is at ``n * request_period`` (default one physics step:
-the testbed's default, 2 ms, or the task's for :meth:`ControllerServerConfig.for_task`; the
+the testbed's default, 4 ms, or the task's for :meth:`ControllerServerConfig.for_task`; the
 original's solvers call the server once per step). The control law runs
 every ``control_period`` of that time (4 ms, in walking.yaml) and the torques are held in
 between. A time earlier than the last one restarts the controller (a new episode).

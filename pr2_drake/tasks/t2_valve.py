@@ -7,7 +7,7 @@ is the joint's viscous damping (Drake joint damping) plus a Coulomb-like torque
 ``-friction_torque * tanh(w / friction_speed)`` (:class:`ValveFriction`; the torque a Context
 parameter, which the domain randomisation draws) on the plant's applied generalized force input (our choice: Drake's discrete solver
 has no joint Coulomb friction; the smoothed torque is explicit but its slope is far below what
-destabilises the wheel's inertia at the 2 ms step).
+destabilises the wheel's inertia at the 4 ms step: 12 Nm s/rad against I/dt = 45).
 
 Pick: ``pick`` with a hand latches while the hand sphere centre is inside the enlarged valve
 volume (``scene.pick_volume``: 0.30 m horizontal radius about the axis, within a height band);
