@@ -54,6 +54,28 @@ def test_a_sloped_patch_answers_height_normal_and_landing_pitch():
     assert z == pytest.approx(0.15) and pitch == pytest.approx(-np.arctan(0.1))  # toe up
 
 
+def test_heights_along_a_line_are_the_pointwise_heights_bit_for_bit():
+    """The swing planner samples the ground along its path at every tick, all samples at once;
+    each must be what :meth:`PatchTerrain.height` gives for that point (the highest patch,
+    sloped or level, or the base), to the last bit."""
+    rng = np.random.default_rng(3)
+    patches = [PlanarPatch(0.0, 2.0, -1.0, 1.0, z=0.1, gx=0.07, gy=-0.03),
+               PlanarPatch(0.5, 1.0, -0.2, 0.3, z=0.25),  # a box on the ramp
+               PlanarPatch(0.8, 1.6, -0.5, 0.5, z=0.12),  # lower than the ramp in parts
+               PlanarPatch(-np.inf, np.inf, 0.9, 1.5, z=-0.05)]
+    terrain = PatchTerrain(patches, base=0.02)
+    for _ in range(300):
+        x, y = rng.uniform(-0.5, 2.5, 2)
+        yaw, s0 = rng.uniform(-np.pi, np.pi), rng.uniform(-0.3, 0.0)
+        s1 = s0 + rng.uniform(0.0, 0.8)
+        z = terrain.heights_along(x, y, yaw, s0, s1)
+        d = np.linspace(s0, s1, len(z))
+        assert len(z) == max(int(np.ceil((s1 - s0) / 0.005)), 1) + 1
+        expected = [terrain.height(x + np.cos(yaw) * t, y + np.sin(yaw) * t) for t in d]
+        assert z.tolist() == expected
+    assert terrain.heights_along(3.0, 0.0, 0.0, 0.0, 0.1).tolist() == [0.02] * 21  # base
+
+
 def test_a_riser_taller_than_the_planner_limit_is_refused_naming_the_terrain():
     tall = stairs_terrain(1.0, 2, 0.20, 0.40, 2.0)
     with pytest.raises(ValueError, match=r"stairs\(2 x 0.200 m risers.*0.200 m riser at "
