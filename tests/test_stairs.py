@@ -155,6 +155,42 @@ def test_the_swing_over_a_riser_clears_it_with_toe_and_heel_and_lands_flat():
     assert swing.pitch() == (0.0, 0.0)  # lands flat
 
 
+def test_a_step_down_moves_early_and_lowers_only_once_its_heel_is_past_the_edge():
+    """Down a 0.12 m riser (edge at x = 1.0): the sole moves forward from
+    ``swing_down_move_start`` and stays at the clearance height until its heel is
+    ``swing_down_heel_margin`` past the edge; then it lowers and lands flat on the target.
+    A step up keeps the lift-then-move curve."""
+    terrain = stairs_terrain(-1.0, 1, 0.12, 2.0, 2.0, floor_length=0.0)  # 0.12 m up to x = 1
+    g = PARAMS.gait
+    start = np.array([1.0 - HALF_FOOT - 0.03, 0.11, 0.12, 0.0])
+    target = np.array([1.0 + HALF_FOOT + 0.05, 0.11, 0.0, 0.0])
+    swing = SwingTrajectory(0.0, g.single_support, start, target, g.swing_height,
+                            g.swing_land_fraction)
+    swing.plan_over_terrain(terrain, g)
+    clear_z = 0.12 + terrain.clearance
+    assert swing.clear_z == pytest.approx(clear_z) and swing.step_down is not None
+    lowered = moved = None
+    for t in np.linspace(0.0, swing.t_land, 400):
+        p, *_ = swing.evaluate(t)
+        tau = swing.progress
+        if moved is None and p[0] > start[0] + 1e-6:
+            moved = tau
+        heel = p[0] - HALF_FOOT
+        if heel < 1.0 + g.swing_down_heel_margin - 1e-9:
+            assert p[2] >= min(clear_z, terrain.height(p[0] + HALF_FOOT, p[1])) - 1e-9
+        if lowered is None and tau > 0.5 and p[2] < clear_z - 1e-6:
+            lowered = tau
+    assert moved == pytest.approx(g.swing_down_move_start, abs=0.01)
+    assert lowered is not None and lowered > 1.0 - g.swing_clear_lower
+    p, v, *_ = swing.evaluate(swing.t_land)
+    np.testing.assert_allclose(p, target[:3], atol=1e-9)
+    np.testing.assert_allclose(v, 0.0, atol=1e-9)
+    up = SwingTrajectory(0.0, g.single_support, np.array([target[0], 0.11, 0.0, 0.0]), start,
+                         g.swing_height, g.swing_land_fraction)
+    up.plan_over_terrain(terrain, g)
+    assert up.clear_z is not None and up.step_down is None
+
+
 def test_one_step_up_ends_with_both_soles_on_the_tread_without_a_fall():
     terrain = stairs_terrain(0.6, 1, 0.10, 0.40, 2.0, floor_length=2.0)
     sim = StairsSim(terrain)
@@ -244,3 +280,14 @@ def test_bad_catch_settings_are_refused_naming_them(bad):
     params = dataclasses.replace(TreadPlannerParams.load(), **bad)
     with pytest.raises(ValueError, match="catch_excess must be > 0.*catch_phase"):
         TreadFootstepPlanner(PARAMS.gait, 0.01, stairs_terrain(1.0, 2, 0.10, 0.40, 2.0), params)
+
+
+@pytest.mark.parametrize("bad", [dict(swing_down_move_start=-0.1),
+                                 dict(swing_down_move_start=0.9),
+                                 dict(swing_down_heel_margin=float("nan")),
+                                 dict(swing_down_heel_margin=0.5)])
+def test_bad_step_down_settings_are_refused_naming_them(bad):
+    import dataclasses
+    params = dataclasses.replace(PARAMS, gait=dataclasses.replace(PARAMS.gait, **bad))
+    with pytest.raises(ValueError, match="swing_down_move_start.*swing_down_heel_margin"):
+        params.check()

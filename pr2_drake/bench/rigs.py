@@ -250,7 +250,9 @@ def add_patch_terrain(plant: MultibodyPlant, terrain: PatchTerrain) -> None:
 
 class StairsSim(WalkerRig):
     """Its own scene: flat ground, the level patches of a :class:`PatchTerrain` as boxes, and
-    obstacle boxes; the walking controller on treads + arm posture.
+    obstacle boxes; the walking controller on treads, its QP swinging the arms about their
+    pose as in task 5 (``arms="balance"``, walking_stairs.yaml's ``arms.posture``; task 5's
+    agent runs ``"effort"``, which adds the hand target for the press).
 
     Args:
         terrain: the ground (its level patches become boxes).
@@ -288,8 +290,10 @@ class StairsSim(WalkerRig):
             return Scene(name="stairs", start=start or StartPose(),
                          ground_height=terrain.height)
 
-        walker = WalkingController(self.params, footsteps=footsteps, terrain=terrain)
-        super().__init__(walker, Scenario(seconds=math.inf), meshcat, scene_builder=scene)
+        walker = WalkingController(self.params, footsteps=footsteps, terrain=terrain,
+                                   arms="balance")
+        super().__init__(walker, Scenario(seconds=math.inf), meshcat, walker_arms=True,
+                         scene_builder=scene)
         self.soles = [self.plant.GetFrameByName(n, self.testbed.robot)
                       for n in ("l_sole", "r_sole")]
         self.simulator.Initialize()

@@ -25,13 +25,13 @@ climbed up and down without a fall in all repeats.
 
 What limits step height now: the planner refuses risers over 0.12 m
 (params/controllers/tread_planner.yaml ``max_step_height``), the highest measured without a fall:
-``pr2-drake bench stairs --max-step-height 0.15`` (5 repeats, up then down): 0.05, 0.10 and
-0.12 m, 2 and 4 steps, 0/5 falls each; 0.15 m, 2 and 4 steps, 5/5 falls, all at the first
-riser going up: the swing toe caught on the nosing (8 of 10) or the stance knee at its limit
-(2 of 10). With the CoM-height weight at 300 (before) 0.12 m x 4 fell 2/5 going up: the
-stance knee reached its limit while the swing sole lifted fast over the riser (the CoM
-overshot its height target by ~5 cm), or the rear toe pitched down at lift-off and caught the
-nosing. The closed loop on a staircase is :class:`pr2_drake.bench.rigs.StairsSim`.
+``pr2-drake bench stairs`` (5 repeats, up then down, 4 ms physics): 0.05, 0.10 and 0.12 m, 2
+and 4 steps, 0/5 falls each; ``--max-step-height 0.15 --heights 0.15``: 2 and 4 steps, 5/5
+falls each, all going up (the swing toe caught on the nosing, the stance knee at its limit,
+the DCM outside the support). 0.12 m holds with the arms swung by the QP (going up; held in
+position mode it fell x 2 3/5 and x 4 5/5) and with the step-down swing that moves early and
+lowers once its heel is past the edge (going down; gait ``swing_down_*``). The closed loop
+on a staircase is :class:`pr2_drake.bench.rigs.StairsSim`.
 """
 
 from __future__ import annotations

@@ -51,6 +51,12 @@ class GaitParams:
     com_reach: float = 0.0
     swing_clear_lift: float = 0.3
     swing_clear_lower: float = 0.3
+    # Step-downs over an edge (stairs, :class:`PatchTerrain`): the horizontal motion starts at
+    # this fraction of the swing phase (not after 60 % of the lift: nothing ahead is higher,
+    # and a longer window means a slower sole that the leg tracks), and the sole lowers only
+    # once its planned heel is swing_down_heel_margin [m] past the last higher ground.
+    swing_down_move_start: float = 0.1
+    swing_down_heel_margin: float = 0.04
     swing_lift_fraction: float = 0.0  # horizontal swing motion starts/ends this much of the
     # swing phase after lift-off / before landing (vertical lift and landing)
     touchdown_height: float = 0.004  # sole lower than this above the stance sole (above its
@@ -239,6 +245,11 @@ class WalkingParams(Params):
                              f"{g.dcm_gain}")
         if not 0.0 < g.recovery_min_step_width <= g.min_step_width:
             raise ValueError("gait.recovery_min_step_width must be in (0, min_step_width]")
+        if not (0.0 <= g.swing_down_move_start < 1.0 - 0.6 * g.swing_clear_lower
+                and 0.0 <= g.swing_down_heel_margin < 0.2):
+            raise ValueError("gait.swing_down_move_start must be in [0, 1 - 0.6 swing_clear_lower) "
+                             "and swing_down_heel_margin in [0, 0.2) m, got "
+                             f"{g.swing_down_move_start}, {g.swing_down_heel_margin}")
         if g.min_step_width > g.step_width:
             raise ValueError("gait.min_step_width must not exceed gait.step_width")
         if not (0.0 <= g.shift_time_factor < math.inf and 0.0 <= g.stance_slip_replan < math.inf):

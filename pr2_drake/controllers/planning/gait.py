@@ -572,9 +572,7 @@ class GaitPlanner:
         z, pitch = self.terrain.foothold(stance, slope, self.swing.target)
         self.swing.target[2] = z
         self.swing.pitch_target = pitch
-        self.swing.clear_z = self.terrain.swing_clearance(self.swing.start, self.swing.target)
-        g = self.params.gait
-        self.swing.clear_fractions = (g.swing_clear_lift, g.swing_clear_lower)
+        self.swing.plan_over_terrain(self.terrain, self.params.gait)
 
     def _step_over_clearance(self) -> None:
         """A high swing when the footstep planner asks for one (stepping over an obstacle,

@@ -14,6 +14,10 @@ from __future__ import annotations
 import numpy as np
 
 from pr2_drake.controllers.frames import wrap
+from pr2_drake.controllers.planning.terrain import LEVEL_TOLERANCE
+
+#: Latest swing phase at which a step-down's lowering may start (it keeps 5 % of the phase).
+LATEST_LOWERING = 0.95
 
 
 def _quintic(tau: float):
@@ -62,6 +66,9 @@ class SwingTrajectory:
         # fractions of the swing phase for the lift and the lowering (see _clearance_z).
         self.clear_z: float | None = None
         self.clear_fractions = (0.3, 0.3)
+        # A step down over an edge: the phase at which the horizontal motion starts and the
+        # phase from which the sole lowers (None: the clearance fractions decide both).
+        self.step_down: tuple[float, float] | None = None
 
     def phase(self, t: float) -> float:
         """Fraction of the planned single support elapsed (can exceed 1 when landing late)."""
@@ -135,15 +142,39 @@ class SwingTrajectory:
         return (np.array([x0 + s * dx, y0 + s * dy, pz]), np.array([vr * dx, vr * dy, vz]),
                 np.array([ar * dx, ar * dy, az]), yaw, yawd)
 
+    def plan_over_terrain(self, terrain, gait) -> None:
+        """The height to clear on the way (``terrain.swing_clearance``; None: the plain
+        curve) and the lift and lowering fractions (``gait``: GaitParams). A step down over an
+        edge starts its horizontal motion at ``gait.swing_down_move_start`` and lowers only
+        once its planned heel is ``gait.swing_down_heel_margin`` past the higher ground
+        (``terrain.swing_lowering_start``), at the latest from :data:`LATEST_LOWERING`."""
+        self.clear_z = terrain.swing_clearance(self.start, self.target)
+        self.clear_fractions = (gait.swing_clear_lift, gait.swing_clear_lower)
+        self.step_down = None
+        if self.clear_z is None or self.target[2] >= self.start[2] - LEVEL_TOLERANCE:
+            return
+        h0, h1 = gait.swing_down_move_start, 1.0 - 0.6 * gait.swing_clear_lower
+        s_low = terrain.swing_lowering_start(self.start, self.target, gait.swing_down_heel_margin)
+        lo, hi = 0.0, (1.0 if s_low > 0.0 else 0.0)  # the blend's argument at s_low
+        for _ in range(30 if s_low > 0.0 else 0):  # (bisection)
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if _quintic(mid)[0] < s_low else (lo, mid)
+        lower_from = max(1.0 - gait.swing_clear_lower, h0 + hi * (h1 - h0))
+        self.step_down = (h0, min(lower_from, LATEST_LOWERING))
+
     def _evaluate_clearance(self, t: float, tau: float, r: float):
         """Lift, move, lower: the sole rises from its start height to ``clear_z`` over the
         first ``clear_fractions[0]`` of the phase, holds it, and lowers to the target height
         over the last ``clear_fractions[1]``; the horizontal motion (and yaw) blends between
-        60 % of the lift and 40 % into the lowering, so toe and heel pass the edge high."""
+        60 % of the lift and 40 % into the lowering, so toe and heel pass the edge high. A
+        step down (``step_down``) moves from its own start and lowers from its own phase."""
         lift, lower = self.clear_fractions
         z0, z1 = float(self.start[2]), float(self.target[2])
         zc = max(float(self.clear_z), z0, z1)
         h0, h1 = 0.6 * lift, 1.0 - 0.6 * lower
+        down = self.step_down
+        if down is not None:
+            h0 = down[0]
         k = 1.0 / (h1 - h0)
         s, ds, dds = _quintic((tau - h0) * k)
         ds, dds = ds * k, dds * k * k
@@ -151,12 +182,16 @@ class SwingTrajectory:
         p = self.start[:3] + s * d
         v = ds * r * d
         a = dds * r * r * d
-        if tau < 1.0 - lower:
+        if tau < (1.0 - lower if down is None else down[1]):
             sz, dsz, ddsz = _quintic(tau / lift)
             p[2], v[2], a[2] = (z0 + sz * (zc - z0), dsz / lift * r * (zc - z0),
                                 ddsz / lift ** 2 * r * r * (zc - z0))
         else:
-            sz, dsz, ddsz = _quintic((tau - 1.0 + lower) / lower)
+            if down is None:
+                sz, dsz, ddsz = _quintic((tau - 1.0 + lower) / lower)
+            else:
+                lower = 1.0 - down[1]
+                sz, dsz, ddsz = _quintic((tau - down[1]) / lower)
             p[2], v[2], a[2] = (zc + sz * (z1 - zc), dsz / lower * r * (z1 - zc),
                                 ddsz / lower ** 2 * r * r * (z1 - zc))
         dyaw = wrap(self.target[3] - self.start[3])

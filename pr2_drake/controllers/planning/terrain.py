@@ -63,6 +63,13 @@ class FlatTerrain:
         or None for the plain swing curve (no edge on the way; the default)."""
         return None
 
+    def swing_lowering_start(self, start: np.ndarray, target: np.ndarray,
+                             margin: float) -> float:
+        """Fraction [0, 1] of a swing's straight xy path from ``start`` to ``target`` (x, y,
+        z, yaw) after which the sole's heel is ``margin`` [m] past the last ground higher than
+        the target (a step down: the sole may lower from then on); 0 when none (the default)."""
+        return 0.0
+
 
 class SlopeTerrain(FlatTerrain):
     """A planar incline of known angle between a lower and an upper level (the task-4 prior).
@@ -277,6 +284,21 @@ class PatchTerrain(FlatTerrain):
         if z.max() - z.min() < LEVEL_TOLERANCE:
             return None
         return float(z.max()) + self.clearance
+
+    def swing_lowering_start(self, start, target, margin: float) -> float:
+        x0, y0 = float(start[0]), float(start[1])
+        dx, dy = float(target[0]) - x0, float(target[1]) - y0
+        dist = math.hypot(dx, dy)
+        if dist < 1e-6:
+            return 0.0
+        half = 0.5 * self.foot_length
+        n = max(int(math.ceil((dist + half) / SAMPLE_STEP)), 1)
+        d = np.linspace(0.0, dist + half, n + 1)  # under the sole's path, heel to toe
+        z = self.heights_at(x0 + dx / dist * d, y0 + dy / dist * d)
+        higher = np.nonzero(z > float(target[2]) + LEVEL_TOLERANCE)[0]
+        if len(higher) == 0:
+            return 0.0
+        return min((float(d[higher[-1]]) + half + margin) / dist, 1.0)
 
 
 def stairs_patches(start_x: float, heights: Sequence[float], lengths: Sequence[float],
