@@ -78,7 +78,7 @@ class GaitParams:
     # Foot placement from the capture-point (DCM) error, per axis of the heading frame
     # (1 = the DCM lands at the planned offset from the new sole; see step_adjust.py).
     dcm_gain: list[float] = field(default_factory=lambda: [1.0, 1.0])
-    recovery_min_step_width: float = 0.10  # [m] step adjustment may go this narrow
+    recovery_min_step_width: float = 0.08  # [m] step adjustment may go this narrow
     # Step adjustment cost (step_adjust.choose_step): unreachable part of the ideal step along
     # the stance sole, outwards (DCM outside the new sole) and inwards [1/m^2], landing time
     # off the plan [1/s^2], and a fixed cost of changing the landing time.
