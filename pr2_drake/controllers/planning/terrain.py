@@ -37,7 +37,7 @@ SAMPLE_STEP = 0.005
 
 def _linspace(s0: float, s1: float, n: int) -> np.ndarray:
     """``np.linspace(s0, s1, n + 1)`` for n >= 1, bit for bit (the same arithmetic), without
-    its generic dispatch (a third of a swing tick's terrain sampling)."""
+    its generic dispatch (it runs at every tick of a swing on a :class:`PatchTerrain`)."""
     delta = s1 - s0
     step = delta / n
     d = np.arange(n + 1, dtype=float)
