@@ -35,22 +35,6 @@ LEVEL_TOLERANCE = 0.002
 SAMPLE_STEP = 0.005
 
 
-def _linspace(s0: float, s1: float, n: int) -> np.ndarray:
-    """``np.linspace(s0, s1, n + 1)`` for n >= 1, bit for bit (the same arithmetic), without
-    its generic dispatch (it runs at every tick of a swing on a :class:`PatchTerrain`)."""
-    delta = s1 - s0
-    step = delta / n
-    d = np.arange(n + 1, dtype=float)
-    if step == 0.0:  # numpy's path for a denormal step
-        d /= n
-        d *= delta
-    else:
-        d *= step
-    d += s0
-    d[-1] = s1
-    return d
-
-
 class FlatTerrain:
     """Terrain model of the footstep planner: a swing sole lands at the stance sole's height,
     level. Subclasses estimate the height and pitch of a foothold from what the robot knows
@@ -157,7 +141,8 @@ class PlanarPatch:
     def contains(self, x: float, y: float) -> bool:
         return self.x_min <= x <= self.x_max and self.y_min <= y <= self.y_max
 
-    def height(self, x: float, y: float) -> float:
+    def height(self, x, y):
+        """Height [m] at (x, y) [m, W]: floats, or numpy arrays element by element."""
         if self.gx == 0.0 and self.gy == 0.0:
             return self.z
         cx = 0.5 * (self.x_min + self.x_max)
@@ -231,7 +216,7 @@ class PatchTerrain(FlatTerrain):
         The samples' heights are :meth:`height`'s, bit for bit, computed for all at once (the
         swing planner asks for some 70 of them at every tick of a swing over stairs)."""
         n = max(int(math.ceil((s1 - s0) / SAMPLE_STEP)), 1)
-        d = _linspace(s0, s1, n)
+        d = np.linspace(s0, s1, n + 1)
         return self.heights_at(x + math.cos(yaw) * d, y + math.sin(yaw) * d)
 
     def heights_at(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
@@ -240,14 +225,8 @@ class PatchTerrain(FlatTerrain):
         best = np.full(xs.shape, -math.inf)
         for p in self.patches:
             inside = (p.x_min <= xs) & (xs <= p.x_max) & (p.y_min <= ys) & (ys <= p.y_max)
-            if not inside.any():
-                continue
-            if p.gx == 0.0 and p.gy == 0.0:
-                np.maximum(best, np.where(inside, p.z, -math.inf), out=best)
-            else:
-                cx, cy = 0.5 * (p.x_min + p.x_max), 0.5 * (p.y_min + p.y_max)
-                z = p.z + p.gx * (xs - cx) + p.gy * (ys - cy)
-                np.maximum(best, np.where(inside, z, -math.inf), out=best)
+            if inside.any():  # (PlanarPatch.height takes arrays)
+                np.maximum(best, np.where(inside, p.height(xs, ys), -math.inf), out=best)
         return np.where(best == -math.inf, self.base, best)
 
     def on_one_level(self, sole: Sequence[float]) -> bool:
@@ -309,7 +288,7 @@ class PatchTerrain(FlatTerrain):
             return 0.0
         half = 0.5 * self.foot_length
         n = max(int(math.ceil((dist + half) / SAMPLE_STEP)), 1)
-        d = _linspace(0.0, dist + half, n)  # under the sole's path, heel to toe
+        d = np.linspace(0.0, dist + half, n + 1)  # under the sole's path, heel to toe
         z = self.heights_at(x0 + dx / dist * d, y0 + dy / dist * d)
         higher = np.nonzero(z > float(target[2]) + LEVEL_TOLERANCE)[0]
         if len(higher) == 0:
