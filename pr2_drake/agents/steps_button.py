@@ -55,7 +55,7 @@ class StepsButtonParams(Params):
     FILE: ClassVar[str] = "params/agents/steps_button.yaml"
     period: float = 0.02
     walk_speed: float = 0.25
-    stairs_speed: float = 0.15
+    stairs_speed: float = 0.22
     stairs_lead: float = 0.6
     slow_radius: float = 0.4
     lateral_gain: float = 0.8
