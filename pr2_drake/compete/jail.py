@@ -270,8 +270,24 @@ def become_agent(config: dict, argv: list[str]) -> None:
     set_limits(config.get("rlimits", {}))
     if config.get("seccomp", True):
         install_seccomp()
-    os.chdir(config.get("cwd", "/"))
-    os.execv(argv[0], argv)
+    try:
+        os.chdir(config.get("cwd", "/"))
+        os.execv(argv[0], argv)
+    except PermissionError as e:
+        raise PermissionError(e.errno, _unreachable(e.filename or argv[0])) from None
+
+
+def _unreachable(path: str) -> str:
+    """Name the folder above ``path`` the agent's uid cannot enter (after the privilege drop)."""
+    folder = os.path.dirname(os.path.abspath(path))
+    parts = folder.split(os.sep)
+    for i in range(1, len(parts) + 1):
+        above = os.sep.join(parts[:i]) or os.sep
+        if not os.access(above, os.X_OK):
+            return (f"the agent's uid {os.getuid()} cannot reach {path}: {above} is closed to "
+                    f"other users (the project and its Python environment must be readable "
+                    f"by every user: chmod o+rx {above}, or install them elsewhere)")
+    return f"the agent's uid {os.getuid()} may not open or run {path}"
 
 
 def init(config: dict, argv: list[str]) -> int:

@@ -304,7 +304,7 @@ class AgentProcess:
         log = self.log_tail()
         if code == JAIL_FAILED and "sandbox: " in log:
             line = log[log.rindex("sandbox: "):].splitlines()[0]
-            return AgentFault("agent_error", f"the sandbox could not start: {line[:300]}")
+            return AgentFault("agent_error", f"the sandbox could not start: {line[:500]}")
         signum = -code if code is not None and code < 0 else (
             code - 128 if code is not None and self.isolated and 128 < code < 160 else None)
         if signum == signal.SIGXCPU or "SIGXCPU" in log:
