@@ -252,6 +252,29 @@ def test_agent_builds_with_a_bad_sentence_and_refuses_other_priors():
         ObjectSearchAgent({"valve_center": [0, 0, 1]})
 
 
+def test_agent_takes_navigation_overrides_and_names_a_missing_file(tmp_path):
+    from pr2_drake.agents.search.agent import ObjectSearchAgent
+    from pr2_drake.agents.search.navigation import NavigationParams
+    from pr2_drake.paths import resolve_user_path
+
+    models = {}
+    for name, o in SCENE["objects"].items():
+        sdf = resolve_user_path(o["model"], name)
+        models[name] = {"sdf": str(sdf), "mesh": str(sdf.with_suffix(".obj")),
+                        "label": o["label"]}
+    priors = {"object_models": models, "instruction": "bring the apple to the coffee table",
+              "coffee_table_center": [-2.0, -2.0, 0.45], "coffee_table_size": [1.0, 0.6]}
+    base = NavigationParams.load()
+    override = tmp_path / "nav.yaml"
+    override.write_text(f"lookahead: {base.lookahead + 0.25}\n")
+    nav = ObjectSearchAgent(priors, navigation_params=str(override)).GetSubsystemByName(
+        "sequencer").nav
+    assert nav.lookahead == pytest.approx(base.lookahead + 0.25)
+    assert nav.max_yaw_rate == base.max_yaw_rate  # only the file's entries change
+    with pytest.raises(Exception, match="nope.yaml"):
+        ObjectSearchAgent(priors, navigation_params=str(tmp_path / "nope.yaml"))
+
+
 def test_closed_loop_pick_on_seed_0_from_the_desk(tmp_path):
     """Seed 0: the book on the desk. The robot starts before the desk (start override) and
     scans no more than its first frame (a parameter file), so the walk from the study's door

@@ -136,12 +136,16 @@ class ObjectSearchAgent(Diagram):
         walking_params: overrides of params/controllers/walking.yaml for the walking
             controller (task 6's row: params/controllers/walking_search.yaml, the QP at
             125 Hz).
+        navigation_params: overrides of params/agents/search_navigation.yaml (a partial
+            YAML: only its entries change), e.g. ``--set
+            agent_params.navigation_params=FILE``.
     """
 
     __slots__ = ()  # pr2_drake.lifetime: keeps the diagram collectable
 
     def __init__(self, priors: dict[str, Any], params: str | None = None, parser=None,
-                 detector=None, walking_params: str | None = None):
+                 detector=None, walking_params: str | None = None,
+                 navigation_params: str | None = None):
         super().__init__()
         from pr2_drake.agents.search.instruction import InstructionParser
         from pr2_drake.agents.search.perception import (
@@ -172,7 +176,9 @@ class ObjectSearchAgent(Diagram):
         seq = ObjectSearchSequencer(
             instruction, destination_from_priors(priors), detector, height, K,
             1.0 / float(cam["fps"]), (spec.arena["min"], spec.arena["max"]),
-            SearchAgentParams.load(params), NavigationParams.load(), HeadCameraKinematics(),
+            SearchAgentParams.load(params),
+            NavigationParams.load(overrides=[navigation_params] if navigation_params else []),
+            HeadCameraKinematics(),
             error, furniture_height(spec.scene, instruction), MappingParams.load())
         build_sequencer_agent(self, seq, self.controller(priors, walking_params))
 
