@@ -71,6 +71,20 @@ def test_dcm_pushed_over_the_stance_sole_never_crosses_the_feet():
     assert c.residual[1] < 0.0  # the unreachable part is inwards: caught by the next step
 
 
+def test_dcm_pushed_backwards_steps_back_as_far_as_the_recovery_reach():
+    # The DCM runs 0.4 m behind the stance sole: the swing sole lands at the backward limit,
+    # max_step_backward + 0.05 by default, recovery_step_backward when that is set.
+    b = np.array([0.0, 0.03])
+    xi = _dcm_for_landing_at(np.array([-0.40, PLAN[1]]), b, 0.05, T_PLAN)
+    for gait, back in ((GAIT, GAIT.max_step_backward + 0.05),
+                       (dataclasses.replace(GAIT, recovery_step_backward=0.25), 0.25)):
+        c = choose_step(0.05, xi, STANCE[:2], STANCE, 0, PLAN, b, 0.0, T_PLAN, T_PLAN, T_PLAN,
+                        T_PLAN, gait, OMEGA)
+        assert c.target_xy[0] == pytest.approx(-back, abs=1e-9)
+        assert c.residual[0] < -0.1  # the rest of the step is out of reach
+    assert reach_box(GAIT)[0] == pytest.approx(-(GAIT.max_step_backward + 0.05))
+
+
 def test_forward_push_while_walking_is_recovered():
     fell, _ = push_once("back", walking=True, force=40.0, push_time=0.2, walk_before=4.0)
     assert not fell
@@ -109,6 +123,15 @@ def test_partial_gain_acts_in_the_heading_frame():
     R = np.array([[ch, -sh], [sh, ch]])
     np.testing.assert_allclose(c.target_xy - PLAN, R @ np.diag([0.9, 0.6]) @ R.T @ err,
                                atol=1e-9)
+
+
+def test_bad_recovery_step_backward_is_refused():
+    params = WalkingParams.load()
+    for bad in (-0.1, 0.6, float("nan")):
+        bad_params = dataclasses.replace(
+            params, gait=dataclasses.replace(params.gait, recovery_step_backward=bad))
+        with pytest.raises(ValueError, match="recovery_step_backward"):
+            bad_params.check()
 
 
 def test_bad_dcm_gain_is_refused():

@@ -79,6 +79,8 @@ class GaitParams:
     # (1 = the DCM lands at the planned offset from the new sole; see step_adjust.py).
     dcm_gain: list[float] = field(default_factory=lambda: [1.0, 1.0])
     recovery_min_step_width: float = 0.08  # [m] step adjustment may go this narrow
+    recovery_step_backward: float = 0.0  # [m] > 0: ... and this far behind the stance sole
+    #                                      (0: max_step_backward + 0.05)
     # Step adjustment cost (step_adjust.choose_step): unreachable part of the ideal step along
     # the stance sole, outwards (DCM outside the new sole) and inwards [1/m^2], landing time
     # off the plan [1/s^2], and a fixed cost of changing the landing time.
@@ -245,6 +247,9 @@ class WalkingParams(Params):
                              f"{g.dcm_gain}")
         if not 0.0 < g.recovery_min_step_width <= g.min_step_width:
             raise ValueError("gait.recovery_min_step_width must be in (0, min_step_width]")
+        if not 0.0 <= g.recovery_step_backward < 0.5:
+            raise ValueError("gait.recovery_step_backward must be in [0, 0.5) m (0: "
+                             f"max_step_backward + 0.05), got {g.recovery_step_backward}")
         if not (0.0 <= g.swing_down_move_start < 1.0 - 0.6 * g.swing_clear_lower
                 and 0.0 <= g.swing_down_heel_margin < 0.2):
             raise ValueError("gait.swing_down_move_start must be in [0, 1 - 0.6 swing_clear_lower) "

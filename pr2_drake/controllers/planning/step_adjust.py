@@ -47,7 +47,8 @@ class StepChoice:
 def reach_box(gait: GaitParams) -> tuple[float, float, float, float]:
     """Reachable swing-sole offsets from the stance sole (its frame): x_min, x_max [m] and
     lateral min, max [m] (away from the stance sole)."""
-    return (-gait.max_step_backward - 0.05, gait.max_step_forward + 0.05,
+    back = gait.recovery_step_backward or gait.max_step_backward + 0.05
+    return (-back, gait.max_step_forward + 0.05,
             gait.recovery_min_step_width, gait.step_width + 2 * gait.max_step_lateral + 0.05)
 
 
