@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from pr2_drake.controllers.planning.liftoff import LiftoffRule, shift_duration
 from pr2_drake.controllers.planning.speed_correction import SpeedCorrection
@@ -173,3 +174,61 @@ def test_a_learnt_correction_fades_when_the_command_changes():
             corr.observe_command(t, approach(t), approach(t))
         corr.touchdown(t, com, np.asarray(approach(t)), 0.0)
     assert abs(corr.value[1]) <= learnt[1] * g.speed_hold_decay ** 3 + 1e-12
+
+
+def _stride_gait(window: int = 2, error_max: float = 0.2):
+    g = _gait()
+    g.speed_window_steps, g.speed_error_max = window, error_max
+    return g
+
+
+def _sway_steps(corr: SpeedCorrection, steps: int, drift: float, sway: float,
+                push_step: int = -1, push: float = 0.0):
+    """Touchdowns of a straight walk at 0.2 m/s whose single steps alternate their sideways
+    speed by ``sway`` [m/s] around ``drift`` [m/s]; step ``push_step`` is ``push`` [m/s] off."""
+    g = corr.gait
+    period, t, com = g.step_period, 0.0, np.zeros(2)
+    command = [0.2, 0.0, 0.0]
+    corr.reset(t, com)
+    values = []
+    for k in range(steps):
+        for _ in range(int(round(period / DT))):
+            t += DT
+            corr.observe_command(t, command, command)
+        vy = drift + (sway if k % 2 else -sway) + (push if k == push_step else 0.0)
+        com = com + period * np.array([0.2, vy])
+        corr.touchdown(t, com, np.asarray(command), 0.0)
+        values.append(corr.value.copy())
+    return values
+
+
+def test_a_stride_window_does_not_integrate_the_sway():
+    """Single steps sway +-0.2 m/s sideways with no drift: one-step windows swing the
+    correction step to step; a stride window leaves it at zero."""
+    one = _sway_steps(SpeedCorrection(_stride_gait(1, 0.0)), 8, 0.0, 0.2)
+    two = _sway_steps(SpeedCorrection(_stride_gait(2, 0.0)), 8, 0.0, 0.2)
+    assert max(abs(v[1]) for v in one) > 0.05
+    assert max(abs(v[1]) for v in two) < 1e-9
+
+
+def test_a_stride_window_still_corrects_a_drift():
+    """A 5 cm/s drift to the right under the sway is corrected (the correction steers left)."""
+    values = _sway_steps(SpeedCorrection(_stride_gait()), 10, -0.05, 0.15)
+    assert values[-1][1] > 0.05
+
+
+def test_a_push_is_not_integrated():
+    """One step 0.6 m/s off sideways (a push): without the limit the correction jumps to its
+    bound; with speed_error_max it does not move."""
+    free = _sway_steps(SpeedCorrection(_stride_gait(2, 0.0)), 6, 0.0, 0.0, 3, -0.6)
+    held = _sway_steps(SpeedCorrection(_stride_gait(2, 0.2)), 6, 0.0, 0.0, 3, -0.6)
+    assert free[3][1] > 0.05
+    assert max(abs(v[1]) for v in held) < 1e-9
+
+
+def test_bad_speed_window_is_refused():
+    for window, error_max in ((0, 0.0), (5, 0.0), (2, -0.1), (2, math.inf)):
+        params = WalkingParams.load()
+        params.gait.speed_window_steps, params.gait.speed_error_max = window, error_max
+        with pytest.raises(ValueError, match="speed_window_steps"):
+            params.check()

@@ -100,6 +100,8 @@ class GaitParams:
     speed_correction_max: float = 0.15  # [m/s]
     speed_hold_change: float = 0.03  # [m/s] a linear command change that holds it
     speed_hold_decay: float = 0.5  # ... and shrinks it by this factor per step
+    speed_window_steps: int = 1  # the speed compared is the mean over this many steps (2: stride)
+    speed_error_max: float = 0.0  # [m/s] > 0: a window off the command by more is not integrated
     com_bias_rate: float = 0.0  # [1/s] CoM offset estimate from the single-support DCM error
     com_bias_error_max: float = 0.01  # [m] ... each tick's error clipped to this
     com_bias_max: float = 0.03  # [m] ... the estimate within this, per axis (com_bias.py)
@@ -260,6 +262,11 @@ class WalkingParams(Params):
         if not (0.0 <= g.shift_time_factor < math.inf and 0.0 <= g.stance_slip_replan < math.inf):
             raise ValueError("gait.shift_time_factor and stance_slip_replan must be finite and "
                              f">= 0 (0: off), got {g.shift_time_factor}, {g.stance_slip_replan}")
+        if not (isinstance(g.speed_window_steps, int) and 1 <= g.speed_window_steps <= 4
+                and 0.0 <= g.speed_error_max < math.inf):
+            raise ValueError("gait.speed_window_steps must be an integer in 1..4 and "
+                             "speed_error_max finite and >= 0 (0: no limit), got "
+                             f"{g.speed_window_steps}, {g.speed_error_max}")
         if g.com_bias_axes not in ("x", "y", "xy"):
             raise ValueError(f"gait.com_bias_axes must be 'x', 'y' or 'xy', got "
                              f"{g.com_bias_axes!r}")
