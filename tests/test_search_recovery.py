@@ -449,3 +449,29 @@ def test_a_place_with_the_hand_held_high_lowers_its_target_then_releases():
     m = seq.memory(ctx)
     assert m.stage == Stage.RELEASE and m.place_lower == pytest.approx(p.place_lower_max)
     assert "moved 0.040 m down" in " ".join(m.log[-3:]), m.log[-3:]
+
+
+def test_a_place_held_high_past_the_lowering_limit_draws_its_target_back_to_the_base():
+    """The hand stays 5 cm above its drop point (a target beyond the arm's reach): once the
+    target is place_lower_max down it is drawn back horizontally towards the base, within
+    place_pull_max, and the release logs both."""
+    seq, ctx, sim, t = at_the_drop(0.05)
+    p = seq.p
+    drop = seq.memory(ctx).hand_path[-1].copy()
+    x, y, _ = seq.memory(ctx).goal
+    sim.AdvanceTo(t + 0.15)
+    m = seq.memory(ctx)
+    assert m.place_lower < p.place_lower_max and m.place_pull == 0.0  # lowering first
+    sim.AdvanceTo(t + p.place_settle_time - 0.5)  # the path ended 0.4 s before t
+    m = seq.memory(ctx)
+    assert m.stage == Stage.PLACE and m.place_lower == pytest.approx(p.place_lower_max)
+    assert 0.02 < m.place_pull <= p.place_pull_max
+    target = np.asarray(m.targets[m.hand], float)
+    assert target[2] == pytest.approx(drop[2] - p.place_lower_max)
+    moved = target[:2] - drop[:2]
+    assert np.linalg.norm(moved) == pytest.approx(m.place_pull)
+    base = np.array([x, y]) - drop[:2]
+    assert moved @ base == pytest.approx(m.place_pull * np.linalg.norm(base))  # towards it
+    sim.AdvanceTo(t + p.place_settle_time - 0.3)
+    m = seq.memory(ctx)
+    assert m.stage == Stage.RELEASE and "m back" in " ".join(m.log[-3:]), m.log[-3:]

@@ -63,6 +63,7 @@ class SearchAgentParams(Params):
     place_settle_time: float = 1.5
     place_gain: float = 3.0
     place_lower_max: float = 0.04
+    place_pull_max: float = 0.06
     release_hold: float = 0.6
     back_speed: float = 0.10
     back_time: float = 2.0
@@ -148,7 +149,8 @@ class SearchMemory(SequencerMemory):
         r_pick, o_pick: hand and object at the pick in the base's heading frame (m);
         hand_over_top: the hand centre above the pick table's top (m); place_lower: how far
             [m] a place has moved the hand's target below its drop point (the hand stopped
-            above it); up_H: the held object's vertical in the hand frame (None: not kept
+            above it); place_pull: how far [m] it has then drawn the target back towards
+            the base (the target was beyond the arm's reach); up_H: the held object's vertical in the hand frame (None: not kept
             vertical).
         best_err, t_best: the least distance [m] to the stage's goal seen since the stage
             began (by a walk or an approach: the progress watch of :mod:`.recovery`) and when
@@ -195,6 +197,7 @@ class SearchMemory(SequencerMemory):
     o_pick: np.ndarray = field(default_factory=lambda: np.zeros(3))
     hand_over_top: float = 0.0
     place_lower: float = 0.0
+    place_pull: float = 0.0
     up_H: Optional[np.ndarray] = None
     best_err: float = float("inf")
     t_best: float = 0.0

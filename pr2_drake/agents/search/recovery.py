@@ -215,7 +215,11 @@ class RecoveryStages:
         after the path ended (logged); until then the hand's target moves down by
         ``place_gain`` times the height error per second, at most ``place_lower_max``: the
         hand tracks its target a few cm high when the arm's load is heavier or its motors
-        weaker than the model's, and the object would drop that far."""
+        weaker than the model's, and the object would drop that far. Lowered that far and
+        still high, the target is drawn back horizontally towards the base at the same rate,
+        at most ``place_pull_max``: a target the base stopped short of lies beyond the arm's
+        reach (the controller clips it onto a sphere about the shoulder), and an apple
+        dropped from 1.6 cm rolled off the table."""
         p = self.p
         drop = np.asarray(m.hand_path[-1], float)
         error = float(self.model.hand_point(m.hand)[0][2] - drop[2])
@@ -223,10 +227,16 @@ class RecoveryStages:
         if error <= p.place_tolerance or now.t - ended >= p.place_settle_time:
             if m.place_lower > 0.0:
                 m.log.append(f"{now.t:7.2f} place: the hand {error:+.3f} m off its drop point, "
-                             f"its target moved {m.place_lower:.3f} m down")
+                             f"its target moved {m.place_lower:.3f} m down and "
+                             f"{m.place_pull:.3f} m back")
             return True
-        m.place_lower = min(m.place_lower + p.place_gain * error * p.period, p.place_lower_max)
-        m.targets[m.hand] = drop - [0.0, 0.0, m.place_lower]
+        step = p.place_gain * error * p.period
+        if m.place_lower >= p.place_lower_max:
+            m.place_pull = min(m.place_pull + step, p.place_pull_max)
+        m.place_lower = min(m.place_lower + step, p.place_lower_max)
+        back = np.asarray(now.p_WB[:2], float) - drop[:2]
+        back *= m.place_pull / max(float(np.linalg.norm(back)), 1e-9)
+        m.targets[m.hand] = drop + [back[0], back[1], -m.place_lower]
         return False
 
     # ---- after a place ----------------------------------------------------------------------

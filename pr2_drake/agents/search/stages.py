@@ -240,7 +240,7 @@ class SearchStages:
             m.t_stage = now.t
         elif now.t - m.t_stage >= self.p.settle_time:
             drop = self._place_drop(m, now)
-            m.place_lower = 0.0
+            m.place_lower = m.place_pull = 0.0
             self._start_hand_path(m, [drop + [0.0, 0.0, 0.08], drop], now.t)
             self._go(m, Stage.PLACE, now.t)
 
