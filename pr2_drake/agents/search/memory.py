@@ -150,8 +150,8 @@ class SearchMemory(SequencerMemory):
         hand_over_top: the hand centre above the pick table's top (m); place_lower: how far
             [m] a place has moved the hand's target below its drop point (the hand stopped
             above it); place_pull: how far [m] it has then drawn the target back towards
-            the base (the target was beyond the arm's reach); up_H: the held object's vertical in the hand frame (None: not kept
-            vertical).
+            the base (the target was beyond the arm's reach); up_H: the held object's
+            vertical in the hand frame (None: not kept vertical).
         best_err, t_best: the least distance [m] to the stage's goal seen since the stage
             began (by a walk or an approach: the progress watch of :mod:`.recovery`) and when
             it last shrank by the stage's step [s]; approach_tries: walks made again to a pick
